@@ -185,13 +185,17 @@ def test_bad_inputs_raise_errors_that_name_the_problem():
 SCRIPT = """
 import json, sys
 sys.path.insert(0, {tests!r})
-from test_sim_run import Orca, members, rows
+from test_sim_run import CONTROLLERS_UNDER_TEST, members, rows
 from popnavshift.episodes import assign_slots, get_episode
 from popnavshift.sim.run import simulate
 spec = get_episode({episode!r})
-r = simulate(spec, assign_slots(spec, members("mixed", 30, 0.6)), Orca())
-print(json.dumps(rows(r)))
+slots = assign_slots(spec, members("mixed", 30, 0.6))
+print(json.dumps({{name: rows(simulate(spec, slots, make()))
+                  for name, make in CONTROLLERS_UNDER_TEST.items()}}))
 """
+CONTROLLERS_UNDER_TEST = {  # a test navground robot, and the paper's three (two are loop drivers)
+    "test_orca": Orca, "reactive": lambda: "reactive", "early_yield": lambda: "early_yield",
+    "robot_orca": lambda: "robot_orca"}
 
 
 def rows(result) -> dict:
@@ -203,9 +207,12 @@ def test_runs_are_bit_identical_in_one_process_and_across_processes():
     episode = "obstruction-w2.4-d0.2-s1.0-v2"
     spec = get_episode(episode)
     slots = assign_slots(spec, members("mixed", 30, 0.6))
-    first = rows(simulate(spec, slots, Orca()))
+    first = {name: rows(simulate(spec, slots, make()))
+             for name, make in CONTROLLERS_UNDER_TEST.items()}
     simulate(get_episode("sidewalk-w4.2-d0.2-s0.6-v1"), None, Orca())  # other state in between
-    again = rows(simulate(spec, slots, Orca()))
+    simulate(get_episode("crossing-w1.8-d0.2-s1.0-v1"), None, "early_yield")
+    again = {name: rows(simulate(spec, slots, make()))
+             for name, make in CONTROLLERS_UNDER_TEST.items()}
     assert json.dumps(again) == json.dumps(first)
     tests = str(__import__("pathlib").Path(__file__).parent)
     out = subprocess.run([sys.executable, "-c", SCRIPT.format(tests=tests, episode=episode)],

@@ -14,7 +14,6 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-import numpy as np
 import pandas as pd
 
 from .plan import NO_ROBOT, Batch
@@ -51,14 +50,15 @@ def run_batch(
 ) -> tuple[str, pd.DataFrame, pd.DataFrame, float]:
     """Simulate every run of ``batch``; returns (batch id, runs, pedestrians, seconds)."""
     from ..episodes.specs import assign_slots, get_episode
-    from ..sim.run import ControllerError, failed_result, simulate
+    from ..sim.run import ControllerError, failed_result, pedestrian_table, simulate
 
     ctx = context or _CONTEXT
     assert ctx is not None, "worker used before init_worker"
     started = time.perf_counter()
     spec = get_episode(batch.episode, seed=ctx.episode_seed)
     slots: dict[str, pd.DataFrame] = {}  # per population: the same for every controller
-    run_rows, ped_frames, ped_keys = [], [], []
+    run_rows, ped_columns = [], []
+    ped_keys: dict[str, list] = {}
     for run in batch.runs:
         if run.population not in slots:
             slots[run.population] = assign_slots(spec, _members(ctx, batch.mapping, run.population))
@@ -77,12 +77,11 @@ def run_batch(
             "mapping": run.mapping,
         }
         run_rows.append({**result.run, **keys, "error": error})
-        ped_frames.append(result.pedestrians)
-        ped_keys.append((keys, len(result.pedestrians)))
+        ped_columns.append(result.ped_columns)
+        for k, value in keys.items():  # one value per run, repeated per pedestrian
+            ped_keys.setdefault(k, []).append(value)
     runs = pd.DataFrame(run_rows)
-    if not ped_frames:
+    if not ped_columns:
         return batch.id, runs, pd.DataFrame(), time.perf_counter() - started
-    peds = pd.concat(ped_frames, ignore_index=True)
-    for k in ped_keys[0][0]:  # key columns once per batch, not once per run
-        peds[k] = np.repeat([keys[k] for keys, _ in ped_keys], [n for _, n in ped_keys])
+    peds = pedestrian_table(ped_columns, ped_keys)
     return batch.id, runs, peds, time.perf_counter() - started

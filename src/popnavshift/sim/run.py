@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 import pandas as pd
@@ -30,7 +30,8 @@ from ..episodes.specs import PED_RADIUS, EpisodeSpec
 from ..errors import ConfigError, InputError, PopNavShiftError
 from ..plugins import make_backend, make_controller
 from ..tables import PARAM_RANGES, PARAMS
-from .controllers import GOAL_TOLERANCE, ROBOT_RADIUS
+from .controllers import GOAL_TOLERANCE, ROBOT_RADIUS, ROBOT_SENSING_RANGE, LoopDriver
+from .controllers._rollout import sense_neighbors
 from .pedestrians import ResponseLayer, advance
 from .world import DT, MAX_STEPS, SimWorld, build_world, remove_agent, stop_agent
 
@@ -44,11 +45,36 @@ _PARAM_HI = np.array([PARAM_RANGES[p][1] for p in PARAMS]) + 1e-9
 
 @dataclass
 class SimResult:
-    """``run``: one row (dict); ``pedestrians``: one row per slot; ``trajectory``: replay arrays."""
+    """``run``: one row (dict); ``ped_columns``: one row per slot, as columns;
+    ``trajectory``: replay arrays. :attr:`pedestrians` is the DataFrame of
+    ``ped_columns``; the study engine joins the columns of a whole batch into one
+    table instead (:func:`pedestrian_table`), a DataFrame per run costs ~1 ms."""
 
     run: dict
-    pedestrians: pd.DataFrame
+    ped_columns: dict
     trajectory: dict | None = None
+
+    @property
+    def pedestrians(self) -> pd.DataFrame:
+        return pedestrian_table([self.ped_columns])
+
+
+def pedestrian_table(columns: list[dict], keys: dict[str, list] | None = None) -> pd.DataFrame:
+    """One DataFrame from the ``ped_columns`` of several runs, plus ``keys``: extra
+    columns with one value per run (repeated over its pedestrians)."""
+    sizes = [len(c["slot"]) for c in columns]
+    table: dict[str, Any] = {}
+    for name in columns[0] if columns else _PED_COLUMNS:
+        parts = [c[name] for c in columns]
+        if name in _PER_RUN:
+            table[name] = pd.Series(np.repeat(np.array(parts, dtype=object), sizes), dtype=str)
+        elif name == "persona_id":
+            table[name] = pd.Series([x for part in parts for x in part], dtype=str)
+        else:
+            table[name] = np.concatenate(parts) if parts else np.empty(0)
+    for name, values in (keys or {}).items():
+        table[name] = np.repeat(np.array(values, dtype=object), sizes)
+    return pd.DataFrame(table)
 
 
 def simulate(
@@ -71,13 +97,18 @@ def simulate(
     factory, controller_name = resolve_controller(controller)
     ped_backend = make_backend(backend)
     sw: SimWorld | None = None
+    driver: LoopDriver | None = None
     try:
-        sw = build_world(spec, profiles[:, 0], factory, ped_backend)
+        if hasattr(factory, "loop_driver"):
+            driver = factory.loop_driver()
+        sw = build_world(spec, profiles[:, 0], driver or factory, ped_backend)
+        if driver is not None:  # navground hands behaviours its float32 time step
+            driver.start(cast(sim.Agent, sw.robot), sw.world, float(np.float32(DT)))
         layer = ResponseLayer(sw.ped_behaviors, spec, profiles, ROBOT_RADIUS)
-        trace = _Loop(spec, sw, layer, record).execute()
+        trace = _Loop(spec, sw, layer, driver, record).execute()
     except Exception as exc:
         robot = sw.robot_behavior if sw is not None else None
-        blamed = _blame_controller(exc, controller_name, (factory, robot))
+        blamed = _blame_controller(exc, controller_name, (factory, robot, driver))
         if blamed is None:
             raise
         raise blamed from exc
@@ -90,7 +121,7 @@ def simulate(
         "peds_arrived": int(np.sum(trace.arrival_step >= 0)),
         "steps": trace.steps,
     }
-    peds = _pedestrian_rows(spec, controller_name, backend, trace, profiles, persona_ids)
+    peds = _pedestrian_columns(spec, controller_name, backend, trace, profiles, persona_ids)
     return SimResult(run, peds, trace.trajectory(spec) if record else None)
 
 
@@ -106,21 +137,25 @@ def _episode_columns(spec: EpisodeSpec) -> dict:
     }
 
 
-def _pedestrian_rows(spec: EpisodeSpec, controller: str, backend: str, trace: _Trace,
-                     profiles: np.ndarray, persona_ids: list[str]) -> pd.DataFrame:
-    n = len(persona_ids)
-    text = lambda values: pd.Series(values, dtype=str)  # noqa: E731  (typed even when empty)
-    return pd.DataFrame(
-        {
-            "episode": text([spec.id] * n),
-            "controller": text([controller] * n),
-            "backend": text([backend] * n),
-            "slot": np.arange(n, dtype=np.int64),
-            "persona_id": text(persona_ids),
-            **pedestrian_metrics(trace),
-            **{p: profiles[:, j] for j, p in enumerate(PARAMS)},
-        }
-    )
+_PER_RUN = ("episode", "controller", "backend")  # one value per run in ped_columns
+_PED_COLUMNS = (*_PER_RUN, "slot", "persona_id", "arrived", "travel_time", "walk_distance",
+                "stop_time", "detour", "min_robot_clearance", *PARAMS)
+
+
+def _pedestrian_columns(spec: EpisodeSpec, controller: str, backend: str, trace: _Trace,
+                        profiles: np.ndarray, persona_ids: list[str]) -> dict:
+    """The run's pedestrian rows as columns (see :func:`pedestrian_table`)."""
+    columns = {
+        "episode": spec.id,
+        "controller": controller,
+        "backend": backend,
+        "slot": np.arange(len(persona_ids), dtype=np.int64),
+        "persona_id": persona_ids,
+        **pedestrian_metrics(trace),
+        **{p: profiles[:, j] for j, p in enumerate(PARAMS)},
+    }
+    assert tuple(columns) == _PED_COLUMNS
+    return columns
 
 
 def resolve_controller(controller):
@@ -180,7 +215,7 @@ def failed_result(spec: EpisodeSpec, controller: str, backend: str) -> SimResult
         "peds_arrived": 0,
         "steps": 0,
     }
-    peds = _pedestrian_rows(spec, controller, backend, empty, np.zeros((0, len(PARAMS))), [])
+    peds = _pedestrian_columns(spec, controller, backend, empty, np.zeros((0, len(PARAMS))), [])
     return SimResult(run, peds)
 
 
@@ -268,8 +303,10 @@ class _Trace:
 class _Loop:
     """One run's stepping loop; state lives on the instance, arrays are preallocated."""
 
-    def __init__(self, spec: EpisodeSpec, sw: SimWorld, layer: ResponseLayer, record: bool) -> None:
+    def __init__(self, spec: EpisodeSpec, sw: SimWorld, layer: ResponseLayer,
+                 driver: LoopDriver | None, record: bool) -> None:
         self.spec, self.sw, self.layer, self.record = spec, sw, layer, record
+        self.driver = driver
         n = spec.n_peds
         self.n = n
         na = n + (sw.robot is not None)
@@ -288,6 +325,9 @@ class _Loop:
             self.initial_poses = np.array(
                 [[*a.position, a.orientation] for a in sw.world.agents], dtype=np.float64
             ).reshape(na, 3)
+        if driver is not None:  # what the driver senses: the neighbours' rows and slots
+            self.sensed = np.empty((n, 5))
+            self.sensed_ids = np.empty(n, np.int64)
 
     def execute(self) -> _Trace:
         """Step until the limit, or until the robot is done (or absent) and all peds left.
@@ -300,14 +340,21 @@ class _Loop:
         self.robot_in = self.robot_active = sw.robot is not None
         self.robot = cast(sim.Agent, sw.robot)  # used only while robot_in
         self.contacts = _initial_contacts(self.spec, sw) if self.robot_in else set()
+        driver = self.driver
         rec = sim.ExperimentalRun(sw.world, time_step=DT, steps=MAX_STEPS,
                                   terminate_when_all_idle_or_stuck=False,
-                                  record_config=sim.RecordConfig(pose=True), seed=0)
+                                  record_config=sim.RecordConfig(pose=True,
+                                                                 twist=driver is not None),
+                                  seed=0)
         rec.start()
         idx, frac = np.zeros(n, np.int64), np.zeros(n)
         n_active, step = n, 0
         robot_start = pos[0, n] if self.robot_in else self.no_robot
         layer.step(0.0, pos[0, :n], active, robot_start, robot_start, self.robot_in)
+        if driver is not None:
+            agents = sw.world.agents
+            self._drive(1, np.array([[*a.position, a.orientation] for a in agents], np.float32),
+                        np.array([[*a.velocity, a.angular_speed] for a in agents], np.float32))
         while True:
             if tr.flags is not None:
                 tr.flags[step] = layer.flags
@@ -318,8 +365,9 @@ class _Loop:
             step += 1
             if self.robot_in:
                 self._robot_contacts(step)
+            poses = rec.poses[-1]
             k, s, n_speed, n_target = advance(
-                step * DT, step, rec.poses[-1], pos, self.robot_in, self.robot_active,
+                step * DT, step, poses, pos, self.robot_in, self.robot_active,
                 self.goal, GOAL_TOLERANCE, self.no_robot, self.exits, active, idx, frac,
                 tr.arrival_step, tr.arrival_frac, *layer.state)
             for i in idx[:k]:
@@ -328,6 +376,8 @@ class _Loop:
             if s >= 0.0:
                 self._robot_arrived(step, s)
             layer.write(n_speed, n_target)
+            if driver is not None and self.robot_active and step < MAX_STEPS:
+                self._drive(step + 1, poses, rec.twists[-1])
         tr.steps = step
         if tr.has_robot and tr.outcome == "none":
             tr.outcome, tr.outcome_step = "timeout", step
@@ -336,6 +386,15 @@ class _Loop:
         if self.record:
             tr.poses = np.concatenate([self.initial_poses[None], np.array(rec.poses)[:step]])
         return tr
+
+    def _drive(self, step: int, poses: np.ndarray, twists: np.ndarray) -> None:
+        """The driver's decision for navground step ``step``, from the float32 poses
+        and twists (agents, 3) that the step's sensing will read."""
+        n = self.n
+        m = sense_neighbors(poses, twists, n, self.active, ROBOT_SENSING_RANGE,
+                            self.sensed, self.sensed_ids)
+        cast(LoopDriver, self.driver).step(step, poses[n], self.sensed[:m],
+                                           self.sensed_ids[:m])
 
     def _robot_contacts(self, step: int) -> None:
         """Robot contacts, every step while it is in the scene; the first one stops it."""

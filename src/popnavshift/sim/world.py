@@ -41,7 +41,7 @@ def build_world(
 ) -> SimWorld:
     """The world of ``spec`` with pedestrians at preferred ``speeds`` (n,) [m/s].
 
-    ``controller`` is a ControllerFactory or None (no robot). Its behaviour is built
+    ``controller`` is a ControllerFactory, a LoopDriver or None (no robot). Its behaviour is built
     with 2WDiff kinematics whose wheel max speed is the cell's robot speed, so the
     forward speed cap is exactly that speed (angular cap 2·speed/axis).
     """
@@ -70,9 +70,11 @@ def _make_robot(spec: EpisodeSpec, controller) -> tuple[sim.Agent, core.Behavior
         max_speed=speed, wheel_axis=WHEEL_AXIS
     )
     behavior = controller.build(kin, ROBOT_RADIUS, speed)
-    se = sim.state_estimations.BoundedStateEstimation(range=ROBOT_SENSING_RANGE)
+    sensing = []  # a loop driver without it senses through the loop (controllers.LoopDriver)
+    if getattr(controller, "sensing", True):
+        sensing.append(sim.state_estimations.BoundedStateEstimation(range=ROBOT_SENSING_RANGE))
     robot = sim.Agent(
-        radius=ROBOT_RADIUS, behavior=behavior, kinematics=kin, state_estimations=[se]
+        radius=ROBOT_RADIUS, behavior=behavior, kinematics=kin, state_estimations=sensing
     )
     (sx, sy), (gx, gy) = spec.robot_start, spec.robot_goal
     pose = core.Pose2((sx, sy), math.atan2(gy - sy, gx - sx))

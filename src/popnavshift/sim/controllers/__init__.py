@@ -15,13 +15,20 @@ A factory is called as ``factory(**params)`` and returns a
 * ``after_placement(behavior, dt)`` — called once after the world set the
   robot's pose and target and before the first step (e.g. navground 0.7.0's
   uninitialised ``ORCABehavior::D`` workaround, see docs/method.md).
+
+Optionally, ``loop_driver() -> LoopDriver`` puts the controller on the stepping
+loop's fast path (:class:`LoopDriver`): navground then never calls Python for
+the robot. The built-in ``reactive`` and ``early_yield`` use it; their
+behaviours stay the reference (a test checks that both give the same runs) and
+the way to use them in plain navground.
 """
 
 from __future__ import annotations
 
 from typing import Any, Protocol
 
-from navground import core
+import numpy as np
+from navground import core, sim
 
 from ...registry import Registry
 
@@ -41,6 +48,39 @@ class ControllerFactory(Protocol):
     def after_placement(self, behavior: core.Behavior, dt: float) -> None: ...
 
     def describe(self) -> dict[str, Any]: ...
+
+
+class LoopDriver(Protocol):
+    """A controller computed by the stepping loop (:mod:`popnavshift.sim.run`).
+
+    A Python behaviour costs ~30 us per step inside navground's update (the
+    C++→Python call, then reading the sensed neighbours through the binding); the
+    loop already holds every pose and twist as arrays. A driver builds a C++
+    behaviour for the robot, then once per control step gets what bounded
+    sensing would give and acts on the robot only when its decision changes
+    (``robot.controller.follow_manual_cmd``, a new target, ...).
+
+    * ``sensing`` — whether the robot keeps navground's bounded sensing (its C++
+      behaviour uses it);
+    * ``build`` / ``after_placement`` — as for a factory;
+    * ``start(robot, world, dt)`` — once the world is built, before the first step;
+    * ``step(step, pose, peds, ids)`` — before navground step ``step`` (from 1):
+      the robot's ``pose`` (x, y, θ), the sensed neighbours ``peds`` (N, 5: x, y,
+      vx, vy, radius) and their slots ``ids`` (N,), as float32 values of the
+      state navground's own sensing reads at that step.
+    """
+
+    sensing: bool
+
+    def build(
+        self, kinematics: core.Kinematics, radius: float, speed: float
+    ) -> core.Behavior: ...
+
+    def after_placement(self, behavior: core.Behavior, dt: float) -> None: ...
+
+    def start(self, robot: sim.Agent, world: sim.World, dt: float) -> None: ...
+
+    def step(self, step: int, pose: np.ndarray, peds: np.ndarray, ids: np.ndarray) -> None: ...
 
 
 CONTROLLERS: Registry[ControllerFactory] = Registry("controller")

@@ -18,8 +18,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from navground import core
+from navground import core, sim
 from numba import njit
+
+from ...episodes.specs import PED_RADIUS
 
 EMPTY_PEDS = np.zeros((0, 5))
 EMPTY_WALLS = np.zeros((0, 4))
@@ -46,14 +48,48 @@ def neighbors_array(state: core.GeometricState) -> tuple[np.ndarray, list[int]]:
     return np.array(rows), ids
 
 
-def static_arrays(state: core.GeometricState) -> tuple[np.ndarray, np.ndarray]:
-    """Walls (M, 4) and static discs (K, 3) of a GeometricState."""
-    walls = [(*w.p1, *w.p2) for w in state.line_obstacles]
-    discs = [(*d.position, d.radius) for d in state.static_obstacles]
+def static_arrays(state: core.GeometricState | sim.World) -> tuple[np.ndarray, np.ndarray]:
+    """Walls (M, 4) and static discs (K, 3) of a GeometricState, or of a World
+    (the same float32 values: bounded sensing copies the world's in ``prepare``)."""
+    if isinstance(state, sim.World):
+        lines, disc_list = state.line_obstacles, state.discs
+    else:
+        lines, disc_list = state.line_obstacles, state.static_obstacles
+    walls = [(*w.p1, *w.p2) for w in lines]
+    discs = [(*d.position, d.radius) for d in disc_list]
     return (
         np.array(walls, dtype=np.float64) if walls else EMPTY_WALLS,
         np.array(discs, dtype=np.float64) if discs else EMPTY_DISCS,
     )
+
+
+@njit(cache=True)
+def sense_neighbors(poses, twists, robot, active, reach, out, ids):
+    """What navground's bounded sensing gives the robot, from the loop's arrays.
+
+    ``poses`` and ``twists`` (agents, 3) are the step's float32 record (x, y, θ and
+    vx, vy, ω; pedestrians first, ``robot`` the robot's row). A pedestrian still in
+    the scene (``active``) is sensed when its centre is closer than ``reach`` plus
+    its radius, computed in float32 as ``World::get_neighbors`` does, so the same
+    neighbours are found. Writes their rows (x, y, vx, vy, radius) into ``out``
+    and their slots into ``ids``, in slot order; returns their number. Every
+    kernel that reads them is order-free (minima and per-row tests).
+    """
+    rx, ry = poses[robot, 0], poses[robot, 1]
+    radius = np.float32(PED_RADIUS)
+    limit = np.float32(reach) + radius
+    m = 0
+    for i in range(active.shape[0]):
+        if not active[i]:
+            continue
+        dx, dy = poses[i, 0] - rx, poses[i, 1] - ry
+        if np.sqrt(dx * dx + dy * dy) < limit:
+            out[m, 0], out[m, 1] = poses[i, 0], poses[i, 1]
+            out[m, 2], out[m, 3] = twists[i, 0], twists[i, 1]
+            out[m, 4] = radius
+            ids[m] = i
+            m += 1
+    return m
 
 
 # ---------------------------------------------------------------------- geometry

@@ -30,10 +30,11 @@ arrival is judged against the goal (notes §3).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any, SupportsFloat, cast
 
 import numpy as np
-from navground import core
+from navground import core, sim
 
 from ._params import Param, require_two_wheels, resolve_params
 from ._rollout import conflicting, neighbors_array, pull_aside_point, static_arrays
@@ -58,97 +59,121 @@ EXIT_HYSTERESIS = 0.1  # [m] extra distance required to end a yield
 ASIDE_FORWARD = 0.5  # [m] pull-aside point ahead along the path (a diff-drive cannot slide)
 ASIDE_STEP, ASIDE_MAX = 0.1, 2.0  # [m] lateral offsets scanned per side
 ASIDE_TOLERANCE = 0.1  # [m] the pull-aside point counts as reached within this distance
+NAME = "early_yield"
 NAVGROUND_NAME = "PopNavShiftEarlyYield"  # the behaviour's navground type name
 
 
-class EarlyYieldBehavior(core.Behavior, name=NAVGROUND_NAME):
-    """The early-yielding controller as a navground behaviour.
+class YieldMachine:
+    """The GO / PULL_ASIDE / WAIT state machine, fed with the sensed neighbours
+    by whichever runs it (:class:`EarlyYieldBehavior` or :class:`EarlyYieldDriver`).
 
-    :attr:`phase` is the state ("go", "pull_aside", "wait"),
-    :attr:`aside_point` the current pull-aside point [m] (or None) and
-    :attr:`yields` the number of yields started (diagnostics).
+    :attr:`phase` is the state, :attr:`aside_point` the current pull-aside point
+    [m] (None in GO and when waiting in place), :attr:`yields` the number of
+    yields started (diagnostics). :attr:`static` holds the walls and discs.
     """
 
-    def __init__(self, kinematics: core.Kinematics | None = None, radius: float = 0.0,
-                 **params: Any) -> None:
-        core.Behavior.__init__(self, kinematics, radius)
-        self.params = resolve_params("early_yield", PARAMS, params)
-        self.inner = core.behaviors.ORCABehavior(kinematics, radius)
-        configure_orca(self.inner, {**self.params, "effective_center": False})
-        self.horizon = self.params["horizon"]
-        self.safety_margin = self.params["safety_margin"]
-        # The inner ORCA's state, cached: the property costs ~6 us per read.
-        self._state = cast(core.GeometricState, self.inner.environment_state)
-        self._static: tuple[np.ndarray, np.ndarray] | None = None
-        self._step = 0
+    def __init__(self, params: dict[str, Any], radius: float, speed: float,
+                 static: tuple[np.ndarray, np.ndarray]) -> None:
+        self.params, self.radius, self.speed, self.static = params, radius, speed, static
         self.phase = GO
-        self._phase_start = self._yield_start = 0
+        self._step = self._phase_start = self._yield_start = 0
         self.aside_point: tuple[float, float] | None = None
         self._ignored: set[int] = set()
         self.yields = 0
 
-    def get_environment_state(self) -> core.GeometricState:
-        return self._state  # sensing fills the inner ORCA's state directly
-
     def _enter(self, phase: str) -> None:
         self.phase, self._phase_start = phase, self._step
+        if phase == GO:
+            self.aside_point = None
 
-    def _conflicts(self, x: float, y: float, goal: np.ndarray, peds: np.ndarray,
-                   ids: list[int], margin: float) -> np.ndarray:
+    def _conflicts(self, x: float, y: float, gx: float, gy: float, peds: np.ndarray,
+                   ids: Sequence[int] | np.ndarray, margin: float) -> np.ndarray:
         """Boolean mask (N,) of neighbours in conflict, ignored ones excluded."""
         mask = np.zeros(len(ids), dtype=np.bool_)
-        if not ids:
+        if not len(ids):
             return mask
-        gx, gy = goal.tolist()
         dx, dy = gx - x, gy - y
         dist = math.hypot(dx, dy)
-        speed = float(self.optimal_speed)
-        if dist <= 0.0 or speed <= 0.0:
+        if dist <= 0.0 or self.speed <= 0.0:
             return mask
-        horizon = min(self.params["conflict_horizon"], dist / speed)
-        conflicting(x, y, speed * dx / dist, speed * dy / dist, float(self.radius), peds,
+        horizon = min(self.params["conflict_horizon"], dist / self.speed)
+        conflicting(x, y, self.speed * dx / dist, self.speed * dy / dist, self.radius, peds,
                     horizon, margin, MIN_PED_SPEED, SAME_WAY_COS, mask)
         if self._ignored:
-            mask &= np.array([pid not in self._ignored for pid in ids])
+            mask &= np.array([pid not in self._ignored for pid in ids], dtype=np.bool_)
         return mask
 
-    def _start_yield(self, x: float, y: float, goal: np.ndarray, peds: np.ndarray,
+    def _start_yield(self, x: float, y: float, gx: float, gy: float, peds: np.ndarray,
                      conflict: np.ndarray) -> None:
-        if self._static is None:  # Bounded sensing sets walls and discs once, in prepare
-            self._static = static_arrays(self._state)
-        walls, discs = self._static
-        gx, gy = goal.tolist()
+        walls, discs = self.static
         dx, dy = gx - x, gy - y
         norm = math.hypot(dx, dy) or 1.0
         qx, qy, kind = pull_aside_point(
-            x, y, dx / norm, dy / norm, float(self.radius), self.params["buffer"], peds,
+            x, y, dx / norm, dy / norm, self.radius, self.params["buffer"], peds,
             conflict, walls, discs, self.params["conflict_horizon"], ASIDE_FORWARD,
             ASIDE_STEP, ASIDE_MAX)
         self.yields += 1
         self._yield_start = self._step
-        self.aside_point = None if kind == 2 else (qx, qy)  # 2: nowhere to go, wait here
-        self._enter(WAIT if kind == 2 else PULL_ASIDE)
+        self._enter(WAIT if kind == 2 else PULL_ASIDE)  # 2: nowhere to go, wait here
+        self.aside_point = None if kind == 2 else (qx, qy)
 
-    def _update_phase(self, x: float, y: float, goal: np.ndarray, dt: float) -> None:
-        peds, ids = neighbors_array(self._state)
+    def update(self, step: int, x: float, y: float, gx: float, gy: float, peds: np.ndarray,
+               ids: Sequence[int] | np.ndarray, dt: float) -> str:
+        """The phase for control step ``step`` (counted from 1) of the robot at
+        (x, y) heading to (gx, gy), among neighbours ``peds`` (N, 5) with ids ``ids``."""
+        self._step = step
         buffer = self.params["buffer"]
         if self.phase == GO:
-            conflict = self._conflicts(x, y, goal, peds, ids, buffer)
+            conflict = self._conflicts(x, y, gx, gy, peds, ids, buffer)
             if conflict.any():
-                self._start_yield(x, y, goal, peds, conflict)
-            return
-        still = self._conflicts(x, y, goal, peds, ids, buffer + EXIT_HYSTERESIS)
+                self._start_yield(x, y, gx, gy, peds, conflict)
+            return self.phase
+        still = self._conflicts(x, y, gx, gy, peds, ids, buffer + EXIT_HYSTERESIS)
         if not still.any():
             self._enter(GO)
-        elif (self._step - self._yield_start) * dt >= self.params["max_wait"]:
-            self._ignored.update(pid for pid, c in zip(ids, still, strict=True) if c)
+        elif (step - self._yield_start) * dt >= self.params["max_wait"]:
+            self._ignored.update(int(pid) for pid, c in zip(ids, still, strict=True) if c)
             self._enter(GO)
         elif self.phase == PULL_ASIDE:
             assert self.aside_point is not None
             near = math.hypot(self.aside_point[0] - x, self.aside_point[1] - y)
-            late = (self._step - self._phase_start) * dt >= self.params["pull_aside_timeout"]
+            late = (step - self._phase_start) * dt >= self.params["pull_aside_timeout"]
             if near <= ASIDE_TOLERANCE or late:
                 self._enter(WAIT)
+        return self.phase
+
+
+def aside_target(point: tuple[float, float]) -> core.Target:
+    return core.Target.Point(point, ASIDE_TOLERANCE / 2)
+
+
+class EarlyYieldBehavior(core.Behavior, name=NAVGROUND_NAME):
+    """The early-yielding controller as a navground behaviour: a Python wrapper
+    around a C++ ORCA (:attr:`inner`) driven by a :class:`YieldMachine`
+    (:attr:`machine`; :attr:`phase` and :attr:`yields` are its diagnostics)."""
+
+    def __init__(self, kinematics: core.Kinematics | None = None, radius: float = 0.0,
+                 **params: Any) -> None:
+        core.Behavior.__init__(self, kinematics, radius)
+        self.params = resolve_params(NAME, PARAMS, params)
+        self.inner = inner_orca(kinematics, radius, self.params)
+        self.horizon = self.params["horizon"]
+        self.safety_margin = self.params["safety_margin"]
+        # The inner ORCA's state, cached: the property costs ~6 us per read.
+        self._state = cast(core.GeometricState, self.inner.environment_state)
+        self.machine: YieldMachine | None = None
+        self._step = 0
+
+    @property
+    def phase(self) -> str:
+        return GO if self.machine is None else self.machine.phase
+
+    @property
+    def yields(self) -> int:
+        return 0 if self.machine is None else self.machine.yields
+
+    def get_environment_state(self) -> core.GeometricState:
+        return self._state  # sensing fills the inner ORCA's state directly
 
     def compute_cmd_internal(self, time_step: SupportsFloat) -> core.Twist2:
         time_step = float(time_step)
@@ -157,18 +182,84 @@ class EarlyYieldBehavior(core.Behavior, name=NAVGROUND_NAME):
         inner.set_state_from(self)  # pose, twist, target (the goal), speeds, margin
         goal = self.get_target_position(_ABSOLUTE)
         if goal is None:  # arrived: the inner ORCA brakes
-            self._enter(GO)
             return inner.compute_cmd(time_step)
+        if self.machine is None:  # bounded sensing set walls and discs once, in prepare
+            self.machine = YieldMachine(self.params, float(self.radius),
+                                        float(self.optimal_speed), static_arrays(self._state))
         x, y = self.position.tolist()
-        self._update_phase(x, y, goal, time_step)
-        if self.phase == WAIT:
+        gx, gy = goal.tolist()
+        peds, ids = neighbors_array(self._state)
+        phase = self.machine.update(self._step, x, y, gx, gy, peds, ids, time_step)
+        if phase == WAIT:
             return _ZERO_TWIST
-        if self.phase == PULL_ASIDE:
-            assert self.aside_point is not None
-            inner.target = core.Target.Point(self.aside_point, ASIDE_TOLERANCE / 2)
-        else:
-            self.aside_point = None
+        if phase == PULL_ASIDE:
+            assert self.machine.aside_point is not None
+            inner.target = aside_target(self.machine.aside_point)
         return inner.compute_cmd(time_step)
+
+
+def inner_orca(kinematics: core.Kinematics | None, radius: float,
+               params: dict[str, Any]) -> core.behaviors.ORCABehavior:
+    """The ORCA that drives between yields (effective centre off, as ``robot_orca``)."""
+    orca = core.behaviors.ORCABehavior(kinematics, radius)
+    configure_orca(orca, {**params, "effective_center": False})
+    return orca
+
+
+class EarlyYieldDriver:
+    """The early-yielding controller on the stepping loop's fast path (see
+    :class:`..LoopDriver`). The robot's behaviour is the C++ ORCA itself, set up
+    as :class:`EarlyYieldBehavior`'s inner one; the :class:`YieldMachine` runs
+    on the loop's sensed neighbours and touches navground only when the phase
+    or the pull-aside point changes: the ORCA target (goal or pull-aside point),
+    or a manual zero command while waiting. Same inputs and the same machine as
+    the behaviour, so the same run."""
+
+    sensing = True  # the ORCA senses for itself
+
+    def __init__(self, params: dict[str, Any]) -> None:
+        self.params = params
+        self.machine: YieldMachine | None = None
+
+    def build(self, kinematics: core.Kinematics, radius: float, speed: float) -> core.Behavior:
+        require_two_wheels(NAME, kinematics)
+        orca = inner_orca(kinematics, radius, self.params)
+        orca.horizon = self.params["horizon"]
+        orca.safety_margin = self.params["safety_margin"]
+        orca.optimal_speed = speed
+        orca.heading_behavior = core.Behavior.Heading.velocity
+        return orca
+
+    def after_placement(self, behavior: core.Behavior, dt: float) -> None:
+        break_symmetry(behavior)
+        first_command_workaround(behavior, dt)
+
+    def start(self, robot: sim.Agent, world: sim.World, dt: float) -> None:
+        self._behavior = cast(core.Behavior, robot.behavior)
+        self._controller = robot.controller
+        target = self._behavior.target  # the goal, shifted by break_symmetry
+        gx, gy = cast(np.ndarray, target.position).tolist()
+        self._goal = (gx, gy)
+        self._goal_target = core.Target.Point(self._goal, target.position_tolerance)
+        self._dt = dt
+        self.machine = YieldMachine(self.params, float(self._behavior.radius),
+                                    float(self._behavior.optimal_speed), static_arrays(world))
+
+    def step(self, step: int, pose: np.ndarray, peds: np.ndarray, ids: np.ndarray) -> None:
+        m = cast(YieldMachine, self.machine)
+        before = (m.phase, m.aside_point)
+        x, y = pose[:2].tolist()
+        gx, gy = self._goal
+        m.update(step, x, y, gx, gy, peds, ids, self._dt)
+        if (m.phase, m.aside_point) == before:
+            return
+        if m.phase == WAIT:
+            self._controller.follow_manual_cmd(_ZERO_TWIST)
+            return
+        if before[0] == WAIT:
+            self._controller.stop()  # back to the ORCA
+        self._behavior.target = (self._goal_target if m.phase == GO
+                                 else aside_target(cast(tuple, m.aside_point)))
 
 
 _ABSOLUTE = core.Frame.absolute  # enum lookups cost 0.1 us
@@ -176,9 +267,10 @@ _ZERO_TWIST = core.Twist2((0.0, 0.0), 0.0, core.Frame.relative)
 
 
 class EarlyYield:
-    """Factory of :class:`EarlyYieldBehavior` (registered as ``early_yield``)."""
+    """Factory of :class:`EarlyYieldBehavior` (registered as ``early_yield``); the
+    stepping loop runs it as :class:`EarlyYieldDriver`."""
 
-    name = "early_yield"
+    name = NAME
 
     def __init__(self, **params: Any) -> None:
         self.params = resolve_params(self.name, PARAMS, params)
@@ -197,6 +289,9 @@ class EarlyYield:
         break_symmetry(behavior)  # the inner ORCA gets the outer target every step
         behavior.inner.set_state_from(behavior)
         first_command_workaround(behavior.inner, dt)
+
+    def loop_driver(self) -> EarlyYieldDriver:
+        return EarlyYieldDriver(self.params)
 
     def describe(self) -> dict[str, Any]:
         return {"controller": self.name, **self.params, "inner": "ORCA",

@@ -20,7 +20,7 @@ from __future__ import annotations
 from typing import Any, SupportsFloat, cast
 
 import numpy as np
-from navground import core
+from navground import core, sim
 
 from ._params import Param, require_two_wheels, resolve_params
 from ._rollout import neighbors_array, reactive_command, static_arrays
@@ -40,6 +40,7 @@ PARAMS: dict[str, Param] = {
     "sight_distance": Param(4.0, 0.0, 20.0, doc="length of that straight path checked [m]"),
 }
 CLEARANCE_CAP = 1.0  # [m] clearance beyond this earns nothing more
+NAME = "reactive"
 NAVGROUND_NAME = "PopNavShiftReactive"  # the behaviour's navground type name
 
 
@@ -55,10 +56,7 @@ class ReactiveBehavior(core.Behavior, name=NAVGROUND_NAME):
                  **params: Any) -> None:
         core.Behavior.__init__(self, kinematics, radius)
         self._state = core.GeometricState()
-        self.params = resolve_params("reactive", PARAMS, params)
-        p = self.params
-        self._weights = np.array([p["progress_weight"], p["heading_weight"],
-                                  p["clearance_weight"], p["sight_weight"]])
+        self.params = resolve_params(NAME, PARAMS, params)
         self._constants: tuple | None = None
         self.mode = "go"
         self.mode_counts = dict.fromkeys(MODES, 0)
@@ -66,40 +64,89 @@ class ReactiveBehavior(core.Behavior, name=NAVGROUND_NAME):
     def get_environment_state(self) -> core.GeometricState:
         return self._state
 
-    def _prepare_constants(self, time_step: float) -> tuple:
-        """What stays fixed during a run, read once (a property read through the
-        binding costs 0.2-1.3 us and this runs every step): limits, radius,
-        goal tolerance, dt, rollout settings. Bounded sensing sets walls and
-        discs once, in ``prepare`` (with its default
-        ``update_static_obstacles=False``), so they are cached too."""
-        k = cast(core.kinematics.TwoWheelsDifferentialDriveKinematics, self.kinematics)
-        p = self.params
-        wheel_max, axis = float(k.max_speed), float(k.wheel_axis)
-        v_top = min(float(k.max_forward_speed), wheel_max, float(self.optimal_speed))
-        walls, discs = static_arrays(self._state)
-        constants = (float(self.target.position_tolerance), v_top, wheel_max, axis,
-                     float(self.optimal_angular_speed), float(self.rotation_tau),
-                     float(self.radius), p["buffer"], float(time_step),
-                     max(1, round(p["rollout_time"] / time_step)), p["n_speeds"],
-                     p["n_turns"], self._weights, CLEARANCE_CAP, p["sight_distance"])
-        return constants, walls, discs
-
     def compute_cmd_internal(self, time_step: SupportsFloat) -> core.Twist2:
         goal = self.get_target_position(_ABSOLUTE)
         if goal is None:  # no target or already satisfied
             return _ZERO_TWIST
         if self._constants is None:
-            self._constants = self._prepare_constants(float(time_step))
-        constants, walls, discs = self._constants
+            # bounded sensing set walls and discs once, in prepare (its default
+            # update_static_obstacles=False), so they are read once too
+            self._constants = constants(self, self.params, float(time_step),
+                                        static_arrays(self._state))
         peds, _ = neighbors_array(self._state)
         x, y = self.position.tolist()
         gx, gy = goal.tolist()
-        v, w, mode = reactive_command(  # type: ignore[call-arg]  # numba's stub
-            x, y, float(self.orientation), gx, gy, float(self.optimal_speed), *constants,
-            peds, walls, discs)
+        v, w, mode = decide(x, y, float(self.orientation), gx, gy, self._constants, peds)
         self.mode = MODES[mode]
         self.mode_counts[self.mode] += 1
         return core.Twist2((v, 0.0), w, _RELATIVE)
+
+
+def constants(behavior: core.Behavior, params: dict[str, Any], time_step: float,
+              static: tuple[np.ndarray, np.ndarray]) -> tuple:
+    """The arguments of :func:`._rollout.reactive_command` that stay fixed during a
+    run, read once from the robot's behaviour (a property read through the binding
+    costs 0.2-1.3 us): optimal speed, goal tolerance, limits, radius, dt, rollout
+    settings; then the walls and discs ``static``."""
+    k = cast(core.kinematics.TwoWheelsDifferentialDriveKinematics, behavior.kinematics)
+    wheel_max, axis = float(k.max_speed), float(k.wheel_axis)
+    v_top = min(float(k.max_forward_speed), wheel_max, float(behavior.optimal_speed))
+    weights = np.array([params["progress_weight"], params["heading_weight"],
+                        params["clearance_weight"], params["sight_weight"]])
+    return (float(behavior.optimal_speed), float(behavior.target.position_tolerance), v_top,
+            wheel_max, axis, float(behavior.optimal_angular_speed),
+            float(behavior.rotation_tau), float(behavior.radius), params["buffer"], time_step,
+            max(1, round(params["rollout_time"] / time_step)), params["n_speeds"],
+            params["n_turns"], weights, CLEARANCE_CAP, params["sight_distance"]), static
+
+
+def decide(x: float, y: float, theta: float, gx: float, gy: float, fixed: tuple,
+           peds: np.ndarray) -> tuple[float, float, int]:
+    """(v [m/s], w [rad/s], mode index) for the robot at (x, y, θ) heading to (gx, gy)
+    among neighbours ``peds`` (N, 5); ``fixed`` from :func:`constants`."""
+    scalars, (walls, discs) = fixed
+    return reactive_command(x, y, theta, gx, gy, *scalars, peds, walls, discs)  # type: ignore[call-arg]
+
+
+class ReactiveDriver:
+    """The reactive controller on the stepping loop's fast path (see
+    :class:`..LoopDriver`): the same kernel and the same float32 inputs as
+    :class:`ReactiveBehavior`, so the same commands, without a Python behaviour
+    inside navground's step. The robot runs a C++ ``DummyBehavior`` that is never
+    asked for a command: each decision is applied with
+    ``controller.follow_manual_cmd``, only when it changes."""
+
+    sensing = False  # the loop senses the neighbours
+
+    def __init__(self, params: dict[str, Any]) -> None:
+        self.params = params
+        self.mode_counts = dict.fromkeys(MODES, 0)
+
+    def build(self, kinematics: core.Kinematics, radius: float, speed: float) -> core.Behavior:
+        require_two_wheels(NAME, kinematics)
+        behavior = core.behaviors.DummyBehavior(kinematics, radius)
+        behavior.optimal_speed = speed
+        return behavior
+
+    def after_placement(self, behavior: core.Behavior, dt: float) -> None:
+        """Nothing to initialise: no C++ ORCA state."""
+
+    def start(self, robot: sim.Agent, world: sim.World, dt: float) -> None:
+        behavior = cast(core.Behavior, robot.behavior)
+        self._fixed = constants(behavior, self.params, dt, static_arrays(world))
+        gx, gy = cast(np.ndarray, behavior.target.position).tolist()
+        self._goal = (gx, gy)
+        self._controller = robot.controller
+        self._last: tuple[float, float] | None = None
+
+    def step(self, step: int, pose: np.ndarray, peds: np.ndarray, ids: np.ndarray) -> None:
+        x, y, theta = pose.tolist()
+        gx, gy = self._goal
+        v, w, mode = decide(x, y, theta, gx, gy, self._fixed, peds)
+        self.mode_counts[MODES[mode]] += 1
+        if (v, w) != self._last:
+            self._controller.follow_manual_cmd(core.Twist2((v, 0.0), w, _RELATIVE))
+            self._last = (v, w)
 
 
 _ABSOLUTE, _RELATIVE = core.Frame.absolute, core.Frame.relative  # enum lookups cost 0.1 us
@@ -107,9 +154,10 @@ _ZERO_TWIST = core.Twist2((0.0, 0.0), 0.0, _RELATIVE)
 
 
 class Reactive:
-    """Factory of :class:`ReactiveBehavior` (registered as ``reactive``)."""
+    """Factory of :class:`ReactiveBehavior` (registered as ``reactive``); the
+    stepping loop runs it as :class:`ReactiveDriver`."""
 
-    name = "reactive"
+    name = NAME
 
     def __init__(self, **params: Any) -> None:
         self.params = resolve_params(self.name, PARAMS, params)
@@ -122,6 +170,9 @@ class Reactive:
 
     def after_placement(self, behavior: core.Behavior, dt: float) -> None:
         """Nothing to initialise: the behaviour holds no C++ ORCA state."""
+
+    def loop_driver(self) -> ReactiveDriver:
+        return ReactiveDriver(self.params)
 
     def describe(self) -> dict[str, Any]:
         return {"controller": self.name, **self.params,

@@ -1,0 +1,95 @@
+"""Loop drivers: the fast path of ``reactive`` and ``early_yield`` gives the runs of
+their navground behaviours, bit for bit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from popnavshift.episodes import assign_slots, get_episode
+from popnavshift.sim.bench import synthetic_population
+from popnavshift.sim.controllers import CONTROLLERS
+from popnavshift.sim.run import simulate
+
+# narrow and dense, where the robot adjusts, yields and collides; a wide one; one pedestrian
+EPISODES = ("bottleneck-w2.4-d0.12-s1.0-v2", "crossing-w1.8-d0.2-s0.6-v1",
+            "sidewalk-w1.8-d0.2-s1.0-v3", "obstruction-w3.0-d0.12-s1.0-v1",
+            "sidewalk-w4.2-d0.06-s0.6-v2", "head_on-w1.8-d0.06-s1.0-v1")
+
+
+class BehaviourOnly:
+    """A factory without ``loop_driver``: navground runs the Python behaviour."""
+
+    def __init__(self, factory) -> None:
+        self.factory, self.name = factory, factory.name
+
+    def build(self, kinematics, radius, speed):
+        return self.factory.build(kinematics, radius, speed)
+
+    def after_placement(self, behavior, dt):
+        self.factory.after_placement(behavior, dt)
+
+    def describe(self):
+        return self.factory.describe()
+
+
+class Watched:
+    """The factory itself, keeping the drivers it makes."""
+
+    def __init__(self, factory) -> None:
+        self.factory, self.name, self.drivers = factory, factory.name, []
+
+    def build(self, kinematics, radius, speed):
+        return self.factory.build(kinematics, radius, speed)
+
+    def after_placement(self, behavior, dt):
+        self.factory.after_placement(behavior, dt)
+
+    def loop_driver(self):
+        self.drivers.append(self.factory.loop_driver())
+        return self.drivers[-1]
+
+    def describe(self):
+        return self.factory.describe()
+
+
+def same(a, b) -> bool:
+    return a == b or (isinstance(a, float) and np.isnan(a) and np.isnan(b))
+
+
+@pytest.mark.parametrize("name", ["reactive", "early_yield"])
+@pytest.mark.parametrize("backend", ["orca", "hl"])
+def test_a_loop_driver_gives_the_run_of_its_navground_behaviour(name, backend):
+    population = synthetic_population(0)
+    watched = Watched(CONTROLLERS.make(name))
+    outcomes = set()
+    for episode in EPISODES:
+        spec = get_episode(episode)
+        slots = assign_slots(spec, population)
+        fast = simulate(spec, slots, watched, backend, record=True)
+        slow = simulate(spec, slots, BehaviourOnly(CONTROLLERS.make(name)), backend, record=True)
+        assert all(same(fast.run[k], slow.run[k]) for k in fast.run), (episode, fast.run, slow.run)
+        assert fast.pedestrians.equals(slow.pedestrians), episode
+        np.testing.assert_array_equal(fast.trajectory["robot_pose"], slow.trajectory["robot_pose"])
+        np.testing.assert_array_equal(fast.trajectory["ped_pose"], slow.trajectory["ped_pose"])
+        outcomes.add(fast.run["outcome"])
+    # the sample exercises the drivers' decisions, not only driving straight
+    if name == "reactive":
+        assert sum(d.mode_counts["adjust"] for d in watched.drivers) > 20
+    else:
+        assert sum(d.machine.yields for d in watched.drivers) >= 3
+    assert "success" in outcomes
+
+
+def test_a_reactive_driver_robot_senses_nothing_itself():
+    """The reactive driver's robot has no navground sensing (the loop senses for it)."""
+    from popnavshift.sim.pedestrians import BACKENDS
+    from popnavshift.sim.world import build_world
+
+    spec = get_episode(EPISODES[0])
+    driver = CONTROLLERS.make("reactive").loop_driver()
+    sw = build_world(spec, np.full(spec.n_peds, 1.2), driver, BACKENDS.make("orca"))
+    assert sw.robot is not None and list(sw.robot.state_estimations) == []
+    yielding = CONTROLLERS.make("early_yield").loop_driver()
+    sw = build_world(spec, np.full(spec.n_peds, 1.2), yielding, BACKENDS.make("orca"))
+    assert sw.robot is not None and len(sw.robot.state_estimations) == 1
