@@ -11,7 +11,7 @@ full stack within :data:`TARGET_RATIO` × bare navground.
   r = k mod (4·n_d), c = k div (4·n_d). Consecutive picks differ in every factor,
   and picks 0 … N−1 enumerate all N episodes of the scene without repetition.
 * **Full stack**: :func:`popnavshift.sim.run.simulate` (world build, response
-  layer, Python controller, loop bookkeeping, metrics and result tables) with the
+  layer, robot controller, loop bookkeeping, metrics and per-run result columns) with the
   slots of a synthetic population (:data:`POPULATION_SIZE` members, profiles
   uniform over ``PARAM_RANGES``, drawn from ``seed``; slots assigned outside the
   timing).
@@ -230,7 +230,8 @@ def _rates(df: pd.DataFrame) -> dict[str, Any]:
 
 # ---- where the full stack's time goes ----
 
-#: (category, file suffix or "" for builtins, function names); first match wins.
+#: (category, file suffix or "" for builtins, function names); first match wins; an
+#: empty set of names matches every function of files under that path.
 #: Functions matching none inherit their callers' categories (see profile_categories).
 CATEGORY_RULES: tuple[tuple[str, str, frozenset[str]], ...] = (
     ("world build", "sim/world.py", frozenset({"build_world"})),
@@ -240,7 +241,9 @@ CATEGORY_RULES: tuple[tuple[str, str, frozenset[str]], ...] = (
     # the per-step numba kernel: pose copy, exits, goal entry and the response layer
     ("response layer kernel", "sim/pedestrians.py", frozenset({"_respond", "advance"})),
     ("response layer writes", "sim/pedestrians.py", frozenset({"step", "write"})),
-    ("Python controller", "", frozenset({"compute_cmd_internal"})),
+    ("robot controller (Python)", "", frozenset({"compute_cmd_internal"})),
+    ("robot controller (Python)", "sim/run.py", frozenset({"_drive"})),
+    ("robot controller (Python)", "sim/controllers/", frozenset()),
     ("metrics", "sim/run.py", frozenset({"robot_metrics", "pedestrian_metrics"})),
     ("loop bookkeeping", "sim/run.py",
      frozenset({"execute", "_robot_contacts", "_robot_arrived"})),
@@ -252,8 +255,11 @@ CATEGORY_RULES: tuple[tuple[str, str, frozenset[str]], ...] = (
 
 def _rule(func: tuple[str, int, str]) -> str | None:
     filename, _, name = func
+    path = filename.replace("\\", "/")
     for category, suffix, names in CATEGORY_RULES:
-        if name in names and filename.replace("\\", "/").endswith(suffix):
+        if names and name in names and path.endswith(suffix):
+            return category
+        if not names and f"/{suffix}" in path:
             return category
     return None
 

@@ -176,6 +176,13 @@ class ResponseLayer:
 
     ``profiles`` is (n, 7) in :data:`popnavshift.tables.PARAMS` order. Without a
     robot the layer only advances routes (via point → goal).
+
+    The state lives in a few 2-D arrays (numba checks every argument's type on each
+    call, ~0.1 us per argument, and the kernel runs every step): :attr:`prm`
+    (n, 10) the fixed per-pedestrian values (:data:`PRM`), :attr:`fst` (n, 5) the
+    float state (:data:`FST`), :attr:`ist` (n, 3) the integer state (:data:`IST`),
+    :attr:`buf` (4, n) the kernel's index lists (exits crossed, speed changes,
+    target changes, target codes).
     """
 
     def __init__(self, behaviors, spec: EpisodeSpec, profiles, robot_radius: float) -> None:
@@ -185,31 +192,32 @@ class ResponseLayer:
             [core.Target.Point(tuple(p), GOAL_TOLERANCE) for p in points]
             for points in (spec.ped_vias, spec.ped_goals)
         ]
-        # contiguous columns: numba compiles one signature whatever n is
         rows = np.asarray(profiles, np.float64).reshape(n, 7).T
-        v, d, a, y, tau, L, g = np.ascontiguousarray(rows)
-        self.v = v
+        v, d, a, y, tau, L, g = rows
         deff = effective_clearance(d, g)
-        offset = np.clip(a * deff, *OFFSET_RANGE)
         E = np.asarray(spec.ped_directions, dtype=np.float64).reshape(n, 2)
         vias = np.asarray(spec.ped_vias, np.float64).reshape(n, 2)
-        via_line = np.einsum("ij,ij->i", vias, E) - VIA_LEAD
-        walls = np.asarray(spec.walls, dtype=np.float64).reshape(-1, 4)
-        obstacles = np.asarray(spec.obstacles, dtype=np.float64).reshape(-1, 3)
-        self.stage = np.zeros(n, np.int8)
-        self.factor = np.ones(n)
-        self.flags = np.zeros(n, np.uint8)
-        self.wp = np.zeros((n, 2))
-        self._speed_idx = np.zeros(n, np.int64)
-        self._target_idx = np.zeros(n, np.int64)
-        self._target_code = np.zeros(n, np.int8)
+        self.prm = np.ascontiguousarray(np.column_stack([
+            v, deff, np.clip(a * deff, *OFFSET_RANGE), y, tau, L, E,
+            np.einsum("ij,ij->i", vias, E) - VIA_LEAD,
+            np.asarray(spec.ped_exits, np.float64).reshape(n)]))
+        self.fst = np.zeros((n, len(FST)))
+        self.fst[:, FST.index("seen")] = np.nan
+        self.fst[:, FST.index("factor")] = 1.0
+        self.ist = np.zeros((n, len(IST)), np.int64)
+        self.buf = np.zeros((4, n), np.int64)
+        self.v = self.prm[:, 0]
+        self.factor = self.fst[:, FST.index("factor")]
+        self.wp = self.fst[:, 1:3]
+        self.stage = self.ist[:, IST.index("stage")]
+        self.flags = self.ist[:, IST.index("flags")]
         #: the response kernel's arguments after the per-step ones (:func:`advance`
         #: takes them too); the kernel updates the state arrays in place
         self.state = (
-            v, deff, offset, y, tau, L, E, via_line, PED_RADIUS + robot_radius,
-            int(spec.passing_side), PED_RADIUS + WP_CLEARANCE, walls, obstacles,
-            np.full(n, np.nan), np.zeros(n, np.int8), self.wp, np.zeros(n), self.factor,
-            self.stage, self.flags, self._speed_idx, self._target_idx, self._target_code,
+            self.prm, self.fst, self.ist, self.buf, PED_RADIUS + robot_radius,
+            int(spec.passing_side), PED_RADIUS + WP_CLEARANCE,
+            np.asarray(spec.walls, dtype=np.float64).reshape(-1, 4),
+            np.asarray(spec.obstacles, dtype=np.float64).reshape(-1, 3),
         )
 
     def step(self, t: float, P: np.ndarray, active: np.ndarray, R: np.ndarray,
@@ -225,16 +233,23 @@ class ResponseLayer:
     def write(self, n_speed: int, n_target: int) -> None:
         """Write to navground the first ``n_speed`` speed and ``n_target`` target
         changes listed by the last kernel call (:meth:`step` or :func:`advance`)."""
+        buf = self.buf
         for k in range(n_speed):
-            i = self._speed_idx[k]
+            i = buf[1, k]
             self.behaviors[i].optimal_speed = float(self.v[i] * self.factor[i])
         for k in range(n_target):
-            i = self._target_idx[k]
-            if self._target_code[k] == 1:
+            i = buf[2, k]
+            if buf[3, k] == 1:
                 wp = self.wp[i]
                 self.behaviors[i].target = core.Target.Point((wp[0], wp[1]), WP_TOLERANCE)
             else:
                 self.behaviors[i].target = self.route_targets[self.stage[i]][i]
+
+
+#: columns of ResponseLayer.prm, .fst and .ist
+PRM = ("v", "deff", "offset", "y", "tau", "L", "ex", "ey", "via_line", "exit")
+FST = ("seen", "wp_x", "wp_y", "wp_t0", "factor")
+IST = ("mode", "stage", "flags")
 
 
 @njit(cache=True)
@@ -272,71 +287,72 @@ def _waypoint(px, py, ex, ey, side, offset, need, walls, obstacles, out):
 
 
 @njit(cache=True)
-def _respond(t, P, active, R, R_prev, robot_on, v, deff, offset, y, tau, L, E, via_line, r_sum,
-             side, need, walls, obstacles, seen, mode, wp, wp_t0, factor, stage, flags,
-             speed_idx, target_idx, target_code):
+def _respond(t, P, active, R, R_prev, robot_on, prm, fst, ist, buf, r_sum, side, need, walls,
+             obstacles):
     n_speed = 0
     n_target = 0
     vrx, vry = (R[0] - R_prev[0]) / DT, (R[1] - R_prev[1]) / DT
     robot_slow = math.hypot(vrx, vry) < ROBOT_STOPPED
     for i in range(P.shape[0]):
-        flags[i] = 0
+        ist[i, 2] = 0
         if not active[i]:
             continue
+        v, deff, offset, y, tau, L, ex, ey = (prm[i, 0], prm[i, 1], prm[i, 2], prm[i, 3],
+                                              prm[i, 4], prm[i, 5], prm[i, 6], prm[i, 7])
         px, py = P[i, 0], P[i, 1]
         dist = math.hypot(R[0] - px, R[1] - py)
         aware = False
         if robot_on and dist <= SENSE_RANGE:
-            if math.isnan(seen[i]):
-                seen[i] = t
-            aware = t - seen[i] >= tau[i] - 1e-9
+            if math.isnan(fst[i, 0]):
+                fst[i, 0] = t
+            aware = t - fst[i, 0] >= tau - 1e-9
         else:
-            seen[i] = np.nan
+            fst[i, 0] = np.nan
         conflict = False
         if aware:
             rx, ry = R[0] - px, R[1] - py
-            wx, wy = vrx - v[i] * E[i, 0], vry - v[i] * E[i, 1]
+            wx, wy = vrx - v * ex, vry - v * ey
             ww = wx * wx + wy * wy
             if ww > 1e-12:
                 ts = min(T_PROJ, -(rx * wx + ry * wy) / ww)
                 if ts > 0.0:
-                    conflict = math.hypot(rx + wx * ts, ry + wy * ts) < r_sum + deff[i]
+                    conflict = math.hypot(rx + wx * ts, ry + wy * ts) < r_sum + deff
         f = 1.0
         if conflict and not robot_slow:
-            ramp = min(1.0, max(0.0, (SENSE_RANGE - dist) / (SENSE_RANGE - L[i])))
-            f = 1.0 - y[i] * ramp
+            ramp = min(1.0, max(0.0, (SENSE_RANGE - dist) / (SENSE_RANGE - L)))
+            f = 1.0 - y * ramp
         code = 0
-        if stage[i] == 0 and px * E[i, 0] + py * E[i, 1] >= via_line[i]:
-            stage[i] = 1  # past the via point: head for the goal
+        if ist[i, 1] == 0 and px * ex + py * ey >= prm[i, 8]:
+            ist[i, 1] = 1  # past the via point: head for the goal
             code = 2
-        if mode[i] == 1:
-            dw = math.hypot(wp[i, 0] - px, wp[i, 1] - py)
+        if ist[i, 0] == 1:
+            dw = math.hypot(fst[i, 1] - px, fst[i, 2] - py)
             code = 0  # a detour keeps its waypoint until it ends
-            if dw < WP_REACHED or t - wp_t0[i] >= WP_TIMEOUT - 1e-9:
-                if conflict and dist <= L[i]:
+            if dw < WP_REACHED or t - fst[i, 3] >= WP_TIMEOUT - 1e-9:
+                if conflict and dist <= L:
                     code = 1
                 else:
-                    mode[i] = 0
+                    ist[i, 0] = 0
                     code = 2
-        elif conflict and dist <= L[i]:
-            mode[i] = 1
+        elif conflict and dist <= L:
+            ist[i, 0] = 1
             code = 1
         if code == 1:
-            _waypoint(px, py, E[i, 0], E[i, 1], side, offset[i], need, walls, obstacles, wp[i])
-            wp_t0[i] = t
+            _waypoint(px, py, ex, ey, side, offset, need, walls, obstacles, fst[i, 1:3])
+            fst[i, 3] = t
         if code != 0:
-            target_idx[n_target] = i
-            target_code[n_target] = code
+            buf[2, n_target] = i
+            buf[3, n_target] = code
             n_target += 1
-        if mode[i] == 1:
+        if ist[i, 0] == 1:
             f = max(f, F_DETOUR)
         fq = round(f / F_QUANTUM) * F_QUANTUM
-        if fq != factor[i]:
-            factor[i] = fq
-            speed_idx[n_speed] = i
+        if fq != fst[i, 4]:
+            fst[i, 4] = fq
+            buf[1, n_speed] = i
             n_speed += 1
-        flags[i] = (FLAG_REACTING if conflict else 0) | (FLAG_YIELDING if fq < 1.0 else 0) | (
-            FLAG_DETOURING if mode[i] == 1 else 0
+        ist[i, 2] = (FLAG_REACTING if conflict else 0) | (FLAG_YIELDING if fq < 1.0 else 0) | (
+            FLAG_DETOURING if ist[i, 0] == 1 else 0
         )
     return n_speed, n_target
 
@@ -380,19 +396,18 @@ def entry_fraction(x0, y0, x1, y1, cx, cy, radius):
 
 
 @njit(cache=True)
-def advance(t, step, poses, pos, robot_on, robot_active, goal, goal_radius, no_robot, exits,
-            active, idx, frac, arrival_step, arrival_frac, v, deff, offset, y, tau, L, E,
-            via_line, r_sum, side, need, walls, obstacles, seen, mode, wp, wp_t0, factor, stage,
-            flags, speed_idx, target_idx, target_code):
+def advance(t, step, poses, pos, robot_on, robot_active, goal, goal_radius, no_robot, active,
+            frac, arrival_step, arrival_frac, prm, fst, ist, buf, r_sum, side, need, walls,
+            obstacles):
     """The stepping loop's array work after navground step ``step`` (time ``t`` [s]).
 
     In order: copy x, y of ``poses`` (agents, 3), the step's float32 record, into
     ``pos[step]`` ((steps + 1, agents, 2) [m], robot last); mark the pedestrians that
     crossed their exit (``active`` False, ``arrival_step``/``arrival_frac`` set, indices
-    in ``idx[:k]``); if ``robot_active``, test whether the robot entered the disc
+    in ``buf[0, :k]``); if ``robot_active``, test whether the robot entered the disc
     (``goal``, ``goal_radius``), and if so treat it as gone; run the response layer
     (``no_robot`` stands in for the robot's positions when it is not in the scene).
-    The arguments from ``v`` on are :attr:`ResponseLayer.state`.
+    The arguments from ``prm`` on are :attr:`ResponseLayer.state`.
 
     Returns (k, goal-entry fraction of the step or −1, n_speed, n_target); the last
     two are for :meth:`ResponseLayer.write`.
@@ -402,7 +417,8 @@ def advance(t, step, poses, pos, robot_on, robot_active, goal, goal_radius, no_r
         pos[step, a, 0] = poses[a, 0]
         pos[step, a, 1] = poses[a, 1]
     now, before = pos[step], pos[step - 1]
-    k = crossed_exit(now[:n], before[:n], E, exits, active, idx, frac)
+    idx = buf[0]
+    k = crossed_exit(now[:n], before[:n], prm[:, 6:8], prm[:, 9], active, idx, frac)
     for j in range(k):
         active[idx[j]] = False
         arrival_step[idx[j]] = step
@@ -413,8 +429,6 @@ def advance(t, step, poses, pos, robot_on, robot_active, goal, goal_radius, no_r
                            goal_radius)
         robot_on = robot_on and s < 0.0
     R, R_prev = (now[n], before[n]) if robot_on else (no_robot, no_robot)
-    n_speed, n_target = _respond(t, now[:n], active, R, R_prev, robot_on, v, deff, offset, y,
-                                 tau, L, E, via_line, r_sum, side, need, walls, obstacles, seen,
-                                 mode, wp, wp_t0, factor, stage, flags, speed_idx, target_idx,
-                                 target_code)
+    n_speed, n_target = _respond(t, now[:n], active, R, R_prev, robot_on, prm, fst, ist, buf,
+                                 r_sum, side, need, walls, obstacles)
     return k, s, n_speed, n_target

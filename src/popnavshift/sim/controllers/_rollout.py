@@ -212,6 +212,10 @@ def _tracks(x, y, radius, v_top, cap, movers, walls, n_steps, dt):
     n = movers.shape[0]
     out = np.empty((n_steps + 1, n, 2))
     active = np.empty((n_steps + 1, n + walls.shape[0]), dtype=np.bool_)
+    wall_gap = np.empty(walls.shape[0])
+    for j in range(walls.shape[0]):
+        w = walls[j]
+        wall_gap[j] = point_segment_distance(x, y, w[0], w[1], w[2], w[3]) - radius
     for k in range(n_steps + 1):
         travel = v_top * k * dt + cap
         for e in range(n):
@@ -220,9 +224,7 @@ def _tracks(x, y, radius, v_top, cap, movers, walls, n_steps, dt):
             out[k, e, 0], out[k, e, 1] = px, py
             active[k, e] = math.hypot(px - x, py - y) - radius - movers[e, 4] < travel
         for j in range(walls.shape[0]):
-            w = walls[j]
-            gap = point_segment_distance(x, y, w[0], w[1], w[2], w[3]) - radius
-            active[k, n + j] = gap < travel
+            active[k, n + j] = wall_gap[j] < travel
     return out, active
 
 
@@ -303,11 +305,16 @@ def sight_clearance(x, y, gx, gy, length, t, radius, peds, walls, discs):
     return c
 
 
+#: the fields of the ``cfg`` array of :func:`reactive_command`, in order (one
+#: float64 array: numba checks each argument's type on every call, ~0.1 us each)
+REACTIVE_CFG = ("speed", "tol", "v_top", "wheel_max", "axis", "w_max", "rot_tau", "radius",
+                "buffer", "dt", "n_steps", "n_v", "n_w", "cap", "sight", "w_progress",
+                "w_heading", "w_clearance", "w_sight")
+
+
 @njit(cache=True)
-def reactive_command(x, y, th, gx, gy, speed, tol, v_top, wheel_max, axis, w_max,
-                     rot_tau, radius, buffer, dt, n_steps, n_v, n_w, weights, cap, sight,
-                     peds, walls, discs):
-    """One decision of the reactive controller.
+def reactive_command(x, y, th, gx, gy, cfg, peds, walls, discs):
+    """One decision of the reactive controller; ``cfg`` holds :data:`REACTIVE_CFG`.
 
     Returns (v [m/s], w [rad/s], mode): mode 0 = the drive-to-goal command is
     conflict-free over ``n_steps * dt``; 1 = adjusted to the best free sampled
@@ -318,6 +325,10 @@ def reactive_command(x, y, th, gx, gy, speed, tol, v_top, wheel_max, axis, w_max
     from the arc's end towards the goal (over ``sight`` m), both capped at
     ``cap`` m and divided by it.
     """
+    speed, tol, v_top, wheel_max, axis, w_max, rot_tau = cfg[0], cfg[1], cfg[2], cfg[3], \
+        cfg[4], cfg[5], cfg[6]
+    radius, buffer, dt, cap, sight, weights = cfg[7], cfg[8], cfg[9], cfg[13], cfg[14], cfg[15:]
+    n_steps, n_v, n_w = int(cfg[10]), int(cfg[11]), int(cfg[12])
     horizon = n_steps * dt
     movers, near_walls = _nearby(x, y, radius, v_top * horizon + cap, horizon, peds, walls,
                                  discs)

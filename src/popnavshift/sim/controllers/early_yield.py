@@ -75,6 +75,8 @@ class YieldMachine:
     def __init__(self, params: dict[str, Any], radius: float, speed: float,
                  static: tuple[np.ndarray, np.ndarray]) -> None:
         self.params, self.radius, self.speed, self.static = params, radius, speed, static
+        self._horizon = params["conflict_horizon"]
+        self._mask = np.empty(64, dtype=np.bool_)  # reused by the conflict test
         self.phase = GO
         self._step = self._phase_start = self._yield_start = 0
         self.aside_point: tuple[float, float] | None = None
@@ -87,21 +89,24 @@ class YieldMachine:
             self.aside_point = None
 
     def _conflicts(self, x: float, y: float, gx: float, gy: float, peds: np.ndarray,
-                   ids: Sequence[int] | np.ndarray, margin: float) -> np.ndarray:
-        """Boolean mask (N,) of neighbours in conflict, ignored ones excluded."""
-        mask = np.zeros(len(ids), dtype=np.bool_)
-        if not len(ids):
-            return mask
+                   ids: Sequence[int] | np.ndarray, margin: float) -> np.ndarray | None:
+        """Boolean mask (N,) of neighbours in conflict, ignored ones excluded; None
+        for no conflict (the common case, answered without a mask operation)."""
+        n = len(ids)
         dx, dy = gx - x, gy - y
         dist = math.hypot(dx, dy)
-        if dist <= 0.0 or self.speed <= 0.0:
-            return mask
-        horizon = min(self.params["conflict_horizon"], dist / self.speed)
-        conflicting(x, y, self.speed * dx / dist, self.speed * dy / dist, self.radius, peds,
-                    horizon, margin, MIN_PED_SPEED, SAME_WAY_COS, mask)
+        if not n or dist <= 0.0 or self.speed <= 0.0:
+            return None
+        horizon = min(self._horizon, dist / self.speed)
+        mask = self._mask[:n] if n <= len(self._mask) else np.empty(n, dtype=np.bool_)
+        if not conflicting(x, y, self.speed * dx / dist, self.speed * dy / dist, self.radius,
+                           peds, horizon, margin, MIN_PED_SPEED, SAME_WAY_COS, mask):
+            return None
         if self._ignored:
             mask &= np.array([pid not in self._ignored for pid in ids], dtype=np.bool_)
-        return mask
+            if not mask.any():
+                return None
+        return mask.copy()
 
     def _start_yield(self, x: float, y: float, gx: float, gy: float, peds: np.ndarray,
                      conflict: np.ndarray) -> None:
@@ -125,11 +130,11 @@ class YieldMachine:
         buffer = self.params["buffer"]
         if self.phase == GO:
             conflict = self._conflicts(x, y, gx, gy, peds, ids, buffer)
-            if conflict.any():
+            if conflict is not None:
                 self._start_yield(x, y, gx, gy, peds, conflict)
             return self.phase
         still = self._conflicts(x, y, gx, gy, peds, ids, buffer + EXIT_HYSTERESIS)
-        if not still.any():
+        if still is None:
             self._enter(GO)
         elif (step - self._yield_start) * dt >= self.params["max_wait"]:
             self._ignored.update(int(pid) for pid, c in zip(ids, still, strict=True) if c)

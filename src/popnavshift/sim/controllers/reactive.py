@@ -23,7 +23,7 @@ import numpy as np
 from navground import core, sim
 
 from ._params import Param, require_two_wheels, resolve_params
-from ._rollout import neighbors_array, reactive_command, static_arrays
+from ._rollout import REACTIVE_CFG, neighbors_array, reactive_command, static_arrays
 
 MODES = ("go", "adjust", "stop")
 
@@ -84,28 +84,33 @@ class ReactiveBehavior(core.Behavior, name=NAVGROUND_NAME):
 
 def constants(behavior: core.Behavior, params: dict[str, Any], time_step: float,
               static: tuple[np.ndarray, np.ndarray]) -> tuple:
-    """The arguments of :func:`._rollout.reactive_command` that stay fixed during a
-    run, read once from the robot's behaviour (a property read through the binding
-    costs 0.2-1.3 us): optimal speed, goal tolerance, limits, radius, dt, rollout
-    settings; then the walls and discs ``static``."""
+    """What :func:`._rollout.reactive_command` takes besides the pose, the goal and
+    the neighbours, fixed during a run: its ``cfg`` array, read once from the
+    robot's behaviour (a property read through the binding costs 0.2-1.3 us), and
+    the walls and discs ``static``."""
     k = cast(core.kinematics.TwoWheelsDifferentialDriveKinematics, behavior.kinematics)
     wheel_max, axis = float(k.max_speed), float(k.wheel_axis)
     v_top = min(float(k.max_forward_speed), wheel_max, float(behavior.optimal_speed))
-    weights = np.array([params["progress_weight"], params["heading_weight"],
-                        params["clearance_weight"], params["sight_weight"]])
-    return (float(behavior.optimal_speed), float(behavior.target.position_tolerance), v_top,
-            wheel_max, axis, float(behavior.optimal_angular_speed),
-            float(behavior.rotation_tau), float(behavior.radius), params["buffer"], time_step,
-            max(1, round(params["rollout_time"] / time_step)), params["n_speeds"],
-            params["n_turns"], weights, CLEARANCE_CAP, params["sight_distance"]), static
+    cfg = {
+        "speed": float(behavior.optimal_speed), "tol": float(behavior.target.position_tolerance),
+        "v_top": v_top, "wheel_max": wheel_max, "axis": axis,
+        "w_max": float(behavior.optimal_angular_speed), "rot_tau": float(behavior.rotation_tau),
+        "radius": float(behavior.radius), "buffer": params["buffer"], "dt": time_step,
+        "n_steps": max(1, round(params["rollout_time"] / time_step)),
+        "n_v": params["n_speeds"], "n_w": params["n_turns"], "cap": CLEARANCE_CAP,
+        "sight": params["sight_distance"], "w_progress": params["progress_weight"],
+        "w_heading": params["heading_weight"], "w_clearance": params["clearance_weight"],
+        "w_sight": params["sight_weight"],
+    }
+    return np.array([cfg[f] for f in REACTIVE_CFG], dtype=np.float64), static
 
 
 def decide(x: float, y: float, theta: float, gx: float, gy: float, fixed: tuple,
            peds: np.ndarray) -> tuple[float, float, int]:
     """(v [m/s], w [rad/s], mode index) for the robot at (x, y, θ) heading to (gx, gy)
     among neighbours ``peds`` (N, 5); ``fixed`` from :func:`constants`."""
-    scalars, (walls, discs) = fixed
-    return reactive_command(x, y, theta, gx, gy, *scalars, peds, walls, discs)  # type: ignore[call-arg]
+    cfg, (walls, discs) = fixed
+    return reactive_command(x, y, theta, gx, gy, cfg, peds, walls, discs)
 
 
 class ReactiveDriver:
