@@ -9,6 +9,7 @@ import pytest
 from popnavshift.episodes import assign_slots, get_episode
 from popnavshift.sim.bench import synthetic_population
 from popnavshift.sim.controllers import CONTROLLERS
+from popnavshift.sim.controllers.reactive import ReactiveDriver
 from popnavshift.sim.run import simulate
 
 # narrow and dense, where the robot adjusts, yields and collides; a wide one; one pedestrian
@@ -93,3 +94,25 @@ def test_a_reactive_driver_robot_senses_nothing_itself():
     yielding = CONTROLLERS.make("early_yield").loop_driver()
     sw = build_world(spec, np.full(spec.n_peds, 1.2), yielding, BACKENDS.make("orca"))
     assert sw.robot is not None and len(sw.robot.state_estimations) == 1
+
+
+class BrokenDriver(ReactiveDriver):
+    """The reactive driver, raising at the 5th step."""
+
+    def step(self, step, pose, peds, ids):
+        if step == 5:
+            raise RuntimeError("driver broke")
+        super().step(step, pose, peds, ids)
+
+
+class Raising(Watched):
+    def loop_driver(self):
+        return BrokenDriver(self.factory.params)
+
+
+def test_a_raising_driver_is_the_controllers_error_with_the_time():
+    from popnavshift.sim.run import ControllerError
+
+    spec = get_episode(EPISODES[0])
+    with pytest.raises(ControllerError, match=r"'reactive' raised RuntimeError at t = 0\.4 s"):
+        simulate(spec, None, Raising(CONTROLLERS.make("reactive")))

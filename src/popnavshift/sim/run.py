@@ -190,8 +190,8 @@ def _blame_controller(exc: Exception, controller_name: str,
     while tb is not None:
         owner = tb.tb_frame.f_locals.get("self")
         blamed = blamed or any(owner is s for s in suspects if s is not None)
-        if isinstance(owner, _Loop):
-            step = tb.tb_frame.f_locals.get("step")
+        if isinstance(owner, _Loop) and "step" in tb.tb_frame.f_locals:
+            step = tb.tb_frame.f_locals["step"]
         tb = tb.tb_next
     if not blamed:
         return None
@@ -392,13 +392,15 @@ class _Loop:
             tr.poses = np.concatenate([self.initial_poses[None], np.array(rec.poses)[:step]])
         return tr
 
-    def _drive(self, step: int, poses: np.ndarray, twists: np.ndarray) -> None:
-        """The driver's decision for navground step ``step``, from the float32 poses
-        and twists (agents, 3) that the step's sensing will read."""
+    def _drive(self, upcoming: int, poses: np.ndarray, twists: np.ndarray) -> None:
+        """The driver's decision for navground step ``upcoming``, from the float32
+        poses and twists (agents, 3) that the step's sensing will read. (Not named
+        ``step``: an error is dated by the loop's ``step``, as one raised by a
+        behaviour during that navground step would be.)"""
         n = self.n
         m = sense_neighbors(poses, twists, n, self.active, ROBOT_SENSING_RANGE,
                             self.sensed, self.sensed_ids)
-        cast(LoopDriver, self.driver).step(step, poses[n], self.sensed[:m],
+        cast(LoopDriver, self.driver).step(upcoming, poses[n], self.sensed[:m],
                                            self.sensed_ids[:m])
 
     def _robot_contacts(self, step: int) -> None:
