@@ -25,6 +25,7 @@ from typing import Any, cast
 import numpy as np
 import pandas as pd
 from navground import sim
+from numba import njit
 
 from ..episodes.specs import PED_RADIUS, EpisodeSpec
 from ..errors import ConfigError, InputError, PopNavShiftError
@@ -272,6 +273,7 @@ class _Trace:
     world_collisions: int = 0
     flags: np.ndarray | None = None
     poses: np.ndarray | None = field(default=None, repr=False)
+    measured: dict | None = field(default=None, repr=False)  # see _measure
 
     def trajectory(self, spec: EpisodeSpec) -> dict:
         """Replay arrays: poses (x, y, θ) per step, NaN once an agent has left the scene."""
@@ -467,7 +469,7 @@ def _wall_distances(point: np.ndarray, walls) -> np.ndarray:
     return np.linalg.norm(point - (a + t[:, None] * ab), axis=1)
 
 
-# ---- metrics: one function each, from the trace (positions per step) ----
+# ---- metrics, from the trace (positions per step) ----
 
 
 def _step_lengths(xy: np.ndarray) -> np.ndarray:
@@ -481,72 +483,95 @@ def pedestrian_travel_time(tr: _Trace) -> np.ndarray:
     return np.where(arrived, (tr.arrival_step - 1 + tr.arrival_frac) * DT, np.nan)
 
 
-def _pedestrian_steps(tr: _Trace):
-    """Step lengths (T, n), mask of whole steps before the exit, last-step index, arrived."""
-    T, n = tr.steps, tr.n
-    seg = _step_lengths(tr.pos[: T + 1, :n])
-    arrived = tr.arrival_step >= 0
-    full = np.arange(1, T + 1)[:, None] < np.where(arrived, tr.arrival_step, T + 1)[None, :]
-    last = np.where(arrived, tr.arrival_step - 1, 0)
-    return seg, full, last, arrived
+@njit(cache=True)
+def _metrics(pos, n, steps, arrival_step, arrival_frac, has_robot, robot_last, outcome_step,
+             v_stop_step, walked, stop_steps, detour, min_clear):
+    """Per-pedestrian metrics and the robot's minimum clearance, in one pass over the
+    trace (arithmetic and summation order as numpy's row-by-row reductions, so the
+    values are those of the per-metric formulas in the docstrings above).
+
+    Fills ``walked`` [m], ``stop_steps`` (steps slower than V_STOP before the exit),
+    ``detour`` [m] (NaN if not arrived) and ``min_clear`` [m] (NaN without robot);
+    returns the robot's smallest clearance to any pedestrian up to its outcome
+    (NaN if none)."""
+    robot_min = np.inf
+    for i in range(n):
+        arrived = arrival_step[i] >= 0
+        end = arrival_step[i] if arrived else steps + 1  # whole steps before the exit
+        total = 0.0
+        stopped = 0
+        for t in range(1, steps + 1):
+            dx, dy = pos[t, i, 0] - pos[t - 1, i, 0], pos[t, i, 1] - pos[t - 1, i, 1]
+            seg = math.sqrt(dx * dx + dy * dy)
+            if t < end:
+                total += seg
+                if seg < v_stop_step:
+                    stopped += 1
+        if arrived and steps > 0:
+            k = arrival_step[i]
+            dx, dy = pos[k, i, 0] - pos[k - 1, i, 0], pos[k, i, 1] - pos[k - 1, i, 1]
+            total += arrival_frac[i] * math.sqrt(dx * dx + dy * dy)
+        walked[i] = total
+        stop_steps[i] = stopped
+        detour[i] = np.nan
+        if arrived:
+            k = arrival_step[i]
+            ax, ay = pos[k - 1, i, 0], pos[k - 1, i, 1]
+            ex = ax + arrival_frac[i] * (pos[k, i, 0] - ax)
+            ey = ay + arrival_frac[i] * (pos[k, i, 1] - ay)
+            sx, sy = ex - pos[0, i, 0], ey - pos[0, i, 1]
+            detour[i] = total - math.sqrt(sx * sx + sy * sy)
+        min_clear[i] = np.nan
+        if has_robot:
+            present = arrival_step[i] if arrived else steps
+            best = np.inf
+            for t in range(min(robot_last, present) + 1):
+                dx, dy = pos[t, i, 0] - pos[t, n, 0], pos[t, i, 1] - pos[t, n, 1]
+                gap = math.sqrt(dx * dx + dy * dy) - PED_RADIUS - ROBOT_RADIUS
+                best = min(best, gap)
+                if t <= outcome_step:
+                    robot_min = min(robot_min, gap)
+            if best < np.inf:
+                min_clear[i] = best
+    return robot_min if robot_min < np.inf else np.nan
 
 
-def pedestrian_walking_distance(tr: _Trace) -> np.ndarray:
-    """(n,) [m] path length until the exit (until the end of the run if not arrived)."""
-    seg, full, last, arrived = _pedestrian_steps(tr)
-    if not tr.steps:
-        return np.zeros(tr.n)
-    partial = np.where(arrived, tr.arrival_frac * seg[last, np.arange(tr.n)], 0.0)
-    return np.sum(seg * full, axis=0) + partial
-
-
-def pedestrian_stopping_time(tr: _Trace) -> np.ndarray:
-    """(n,) [s] time spent slower than V_STOP before leaving the scene."""
-    seg, full, _, _ = _pedestrian_steps(tr)
-    return np.sum((seg < V_STOP * DT) & full, axis=0) * DT
-
-
-def pedestrian_detour(tr: _Trace, walked: np.ndarray) -> np.ndarray:
-    """(n,) [m] walked minus the straight line from start to exit point; NaN if not arrived."""
-    arrived = tr.arrival_step >= 0
-    j = np.arange(tr.n)
-    k = np.where(arrived, tr.arrival_step, 1)
-    a, b = tr.pos[k - 1, j], tr.pos[k, j]
-    exit_point = a + tr.arrival_frac[:, None] * (b - a)
-    straight = np.linalg.norm(exit_point - tr.pos[0, : tr.n], axis=1)
-    return np.where(arrived, walked - straight, np.nan)
-
-
-def _clearances(tr: _Trace, last_step: int) -> np.ndarray:
-    """(last_step + 1, n) [m] centre distance robot–pedestrian minus both radii, NaN if absent."""
-    n = tr.n
-    P, R = tr.pos[: last_step + 1, :n], tr.pos[: last_step + 1, n]
-    gap = np.linalg.norm(P - R[:, None, :], axis=2) - PED_RADIUS - ROBOT_RADIUS
-    present = np.arange(last_step + 1)[:, None] <= np.where(
-        tr.arrival_step >= 0, tr.arrival_step, tr.steps
-    )
-    return np.where(present, gap, np.nan)
-
-
-def pedestrian_min_robot_clearance(tr: _Trace) -> np.ndarray:
-    """(n,) [m] smallest clearance to the robot while both are in the scene; NaN without robot."""
-    if not tr.has_robot:
-        return np.full(tr.n, np.nan)
-    gap = _clearances(tr, tr.robot_last_step)
-    seen = ~np.all(np.isnan(gap), axis=0)
-    return np.where(seen, np.nanmin(np.where(np.isnan(gap), np.inf, gap), axis=0), np.nan)
+def _measure(tr: _Trace) -> dict:
+    """Every trace-wide metric, computed once per trace (see :func:`_metrics`)."""
+    if tr.measured is None:
+        n = tr.n
+        walked, stop_steps = np.empty(n), np.empty(n, np.int64)
+        detour, min_clear = np.empty(n), np.empty(n)
+        robot_min = _metrics(tr.pos, n, tr.steps, tr.arrival_step, tr.arrival_frac,
+                             tr.has_robot, tr.robot_last_step, tr.outcome_step,
+                             V_STOP * DT, walked, stop_steps, detour, min_clear)
+        tr.measured = {"walk_distance": walked, "stop_time": stop_steps * DT,
+                       "detour": detour, "min_robot_clearance": min_clear,
+                       "robot_min_clearance": robot_min}
+    return tr.measured
 
 
 def pedestrian_metrics(tr: _Trace) -> dict[str, np.ndarray]:
-    """Per-pedestrian columns: arrived, travel_time, walk_distance, stop_time, detour, ..."""
-    walked = pedestrian_walking_distance(tr)
+    """Per-pedestrian columns:
+
+    * ``arrived``; ``travel_time`` [s] from t = 0 to the interpolated exit crossing
+      (NaN if never arrived);
+    * ``walk_distance`` [m]: path length until the exit (the end of the run if not
+      arrived), the crossing step counted up to the crossing;
+    * ``stop_time`` [s]: time spent slower than V_STOP before leaving the scene;
+    * ``detour`` [m]: walked minus the straight line from start to the exit point
+      (NaN if not arrived);
+    * ``min_robot_clearance`` [m]: smallest centre distance to the robot minus both
+      radii while both are in the scene (NaN without robot).
+    """
+    m = _measure(tr)
     return {
         "arrived": tr.arrival_step >= 0,
         "travel_time": pedestrian_travel_time(tr),
-        "walk_distance": walked,
-        "stop_time": pedestrian_stopping_time(tr),
-        "detour": pedestrian_detour(tr, walked),
-        "min_robot_clearance": pedestrian_min_robot_clearance(tr),
+        "walk_distance": m["walk_distance"],
+        "stop_time": m["stop_time"],
+        "detour": m["detour"],
+        "min_robot_clearance": m["min_robot_clearance"],
     }
 
 
@@ -575,12 +600,11 @@ def robot_metrics(tr: _Trace) -> dict:
     success = tr.outcome == "success"
     frac = tr.outcome_frac if success else 1.0
     out_time = float((s_out - 1 + frac) * DT) if s_out > 0 else 0.0
-    gap = _clearances(tr, s_out)
     out.update(
         robot_time=out_time if success else TIME_LIMIT,
         outcome_time=out_time,
         robot_path_length=float(np.sum(seg) - (1.0 - frac) * (seg[-1] if len(seg) else 0.0)),
         robot_stop_time=float(np.sum(seg < V_STOP * DT) * DT),
-        robot_min_clearance=float(np.nanmin(gap)) if np.isfinite(gap).any() else np.nan,
+        robot_min_clearance=float(_measure(tr)["robot_min_clearance"]),
     )
     return out
