@@ -236,3 +236,61 @@ def test_a_part_repeats_on_extra_seed_sets_and_the_report_shows_the_spread(tmp_p
     assert set(spread.metric) == {"robot_time", "mean_delay", "worst_decile"}
     with pytest.raises(ConfigError, match="seed set"):
         get_episode("sidewalk-w1.8-d0.12-s0.6-v1@sx")
+
+
+def _with_controllers(*controllers: str) -> dict:
+    study = yaml.safe_load(yaml.safe_dump(TINY))
+    study["parts"]["main"]["controllers"] = list(controllers)
+    return study
+
+
+def test_adding_a_controller_runs_that_controller_alone(tmp_path, reference):
+    folder = tmp_path / "grow"
+    first = run_study(study_from_dict(_with_controllers("robot_orca")), folder, workers=1,
+                      show_progress=False)
+    assert first.executed == 6 * 3 * 2  # robot_orca and the no-robot baseline
+    second = run_study(study_from_dict(TINY), folder, workers=1, show_progress=False)
+    assert second.executed == 6 * 3 and second.reused == 6 * 3 * 2  # reactive only
+    for ours, ref in zip(tables(folder), tables(reference), strict=True):
+        pd.testing.assert_frame_equal(ours, ref)
+    # dropping it again runs nothing and leaves the tables of the smaller study
+    third = run_study(study_from_dict(_with_controllers("robot_orca")), folder, workers=1,
+                      show_progress=False)
+    assert third.executed == 0 and not third.nothing_to_do  # its tables were rewritten
+    runs, peds = tables(folder)
+    assert set(runs["controller"]) == {"none", "robot_orca"} and len(runs) == 36
+    assert set(peds["controller"]) == {"none", "robot_orca"}
+
+
+def test_edited_controller_code_reruns_that_controllers_runs(tmp_path, reference, monkeypatch):
+    import shutil
+
+    from popnavshift.engine import runner
+
+    folder = tmp_path / "edited"
+    shutil.copytree(reference, folder)
+    stamp = runner.run_code_stamp
+    monkeypatch.setattr(runner, "run_code_stamp",
+                        lambda c: stamp(c) + ("-edited" if c == "reactive" else ""))
+    report = run_study(study_from_dict(TINY), folder, workers=1, show_progress=False)
+    assert report.executed == 6 * 3 and report.reused == 6 * 3 * 2
+    for ours, ref in zip(tables(folder), tables(reference), strict=True):
+        pd.testing.assert_frame_equal(ours, ref)  # same code really, so same rows
+
+
+def test_the_code_stamp_follows_a_controllers_source(tmp_path, monkeypatch):
+    from popnavshift.plugins import run_code_stamp, simulator_stamp
+
+    module = tmp_path / "my_ctrl.py"
+    source = (
+        "from popnavshift.sim.controllers.robot_orca import RobotORCA\n"
+        "class Mine(RobotORCA):\n"
+        "    name = 'mine'\n"
+    )
+    module.write_text(source)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    before = run_code_stamp("my_ctrl:Mine")
+    assert before == run_code_stamp("my_ctrl:Mine") != run_code_stamp("robot_orca")
+    module.write_text(source + "    # tuned\n")
+    assert run_code_stamp("my_ctrl:Mine") != before
+    assert run_code_stamp("none") == simulator_stamp()

@@ -20,15 +20,20 @@ enough to rebuild the controller (:func:`make_controller` parses it).
 from __future__ import annotations
 
 import difflib
+import functools
+import hashlib
 import importlib
+import inspect
 import json
 import re
+import sys
 from collections.abc import Mapping
 from importlib.metadata import entry_points
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .errors import ConfigError
-from .hashing import canonical_json
+from .hashing import canonical_json, digest
 
 if TYPE_CHECKING:
     from navground import core
@@ -252,3 +257,36 @@ def make_respondent(name: str, **options: Any) -> Respondent:
         raise ConfigError(f"respondent {name!r} is {_describe(obj)}, not a Respondent",
                           hint="subclass popnavshift.responses.respondent.Respondent")
     return obj(**options)
+
+
+def controller_stamp(factory: Any) -> str:
+    """Hash of a controller's ``describe()`` and the source of the module defining its
+    behaviour class (or factory). Code in other modules it imports is not covered."""
+    cls = getattr(factory, "cls", type(factory))
+    try:
+        source = inspect.getsource(sys.modules[cls.__module__])
+    except (KeyError, TypeError, OSError):  # no source: a compiled or interactive class
+        source = ""
+    return digest([factory.describe(), source])
+
+
+@functools.cache
+def simulator_stamp() -> str:
+    """Hash of the simulator's own code (``popnavshift.sim`` with the built-in
+    controllers, ``popnavshift.episodes``) and navground's version: a change to
+    either makes every stored run stale."""
+    import navground
+
+    root = Path(__file__).parent
+    files = sorted(p for sub in ("sim", "episodes") for p in (root / sub).rglob("*.py"))
+    sources = [[p.relative_to(root).as_posix(), hashlib.sha256(p.read_bytes()).hexdigest()]
+               for p in files]
+    return digest([getattr(navground, "__version__", ""), sources])
+
+
+def run_code_stamp(controller: str) -> str:
+    """Stamp of the code a run of ``controller`` (an id, or "none") executes: the
+    simulator, plus the controller's own module for a controller."""
+    if controller == "none":
+        return simulator_stamp()
+    return digest([simulator_stamp(), controller_stamp(make_controller(controller))])

@@ -5,6 +5,9 @@ A run is identified by (episode, population, controller, backend, mapping);
 ``matched`` part is inside ``main``); a run shared by several parts is run once
 and belongs to the first part that plans it. A batch is every run of one
 episode under one backend and mapping, so a worker builds each episode spec once.
+Only runs the study folder does not already hold are batched (see
+:meth:`popnavshift.engine.store.RunStore.carried`): adding a controller to a study
+runs that controller alone.
 """
 
 from __future__ import annotations
@@ -98,13 +101,22 @@ def plan_study(study: Study, episodes: Iterable) -> list[Run]:
     return runs
 
 
-def batches(runs: Iterable[Run], inputs: str = "") -> list[Batch]:
+def batches(runs: Iterable[Run], inputs: str = "",
+            code: dict[str, str] | None = None) -> list[Batch]:
     """Group runs by (episode, backend, mapping), keeping plan order; ``inputs`` is the
-    stamp of the upstream tables the runs are built from."""
+    stamp of the upstream tables the runs are built from, ``code`` the code stamp of
+    each controller (:func:`popnavshift.plugins.run_code_stamp`): a batch's id covers
+    the stamps of the controllers it runs, so edited code never reuses a shard."""
     groups: dict[tuple[str, str, str], list[Run]] = {}
     for r in runs:
         groups.setdefault((r.episode, r.backend, r.mapping), []).append(r)
-    return [Batch(e, b, m, tuple(rs), inputs) for (e, b, m), rs in groups.items()]
+    out = []
+    for (e, b, m), rs in groups.items():
+        stamp = inputs
+        if code is not None:
+            stamp = digest([inputs, sorted({code[r.controller] for r in rs})])
+        out.append(Batch(e, b, m, tuple(rs), stamp))
+    return out
 
 
 def count_runs(study: Study, episodes: Iterable) -> dict[str, dict[str, int]]:

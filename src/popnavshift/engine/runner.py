@@ -29,8 +29,10 @@ from ..pipeline import (
     run_profiles,
     run_responses,
 )
+from ..plugins import run_code_stamp
 from ..progress import console
 from ..responses.probes import PROBE_SET_HASH
+from ..tables import RUN_KEY
 from .executors import executor
 from .plan import batches, count_runs, plan_study
 from .store import RunStore
@@ -54,10 +56,11 @@ class RunReport:
     executed: int = 0
     seconds: float = 0.0
     stages_run: list[str] = field(default_factory=list)
+    compacted: bool = False  # the study tables were (re)written
 
     @property
     def nothing_to_do(self) -> bool:
-        return not self.stages_run and self.executed == 0
+        return not self.stages_run and self.executed == 0 and not self.compacted
 
 
 STRUCTURE_LABELS = ("A~reassign", "A~shuffle", "A~block-")
@@ -159,13 +162,16 @@ def run_study(
             f"built; available: {', '.join(sorted(built))}",
             hint="robustness labels need `respondent2` or a structure part",
         )
-    all_batches = batches(runs, inputs=digest([stamps["populations"], episodes_stamp]))
+    inputs = digest([stamps["populations"], episodes_stamp])
+    code = {c: run_code_stamp(c) for c in sorted({r.controller for r in runs})}
     store = RunStore(folder)
+    carried = store.carried(runs, inputs, code)  # in the tables already: not run again
+    all_batches = batches([r for r in runs if r.key not in carried], inputs, code)
     todo = [b for b in all_batches if not store.is_done(b)]
     report.planned = len(runs)
-    report.reused = sum(len(b.runs) for b in all_batches) - sum(len(b.runs) for b in todo)
-    complete = (folder / "runs.parquet").exists() and (folder / "manifest.json").exists()
-    if not todo and not report.stages_run and complete:
+    report.reused = len(runs) - sum(len(b.runs) for b in todo)
+    complete = (folder / "manifest.json").exists() and not all_batches
+    if not todo and not report.stages_run and complete and _holds_exactly(folder, runs):
         report.seconds = time.perf_counter() - started
         return report
 
@@ -183,7 +189,8 @@ def run_study(
             report.executed += len(by_id[batch_id].runs)
             advance(len(by_id[batch_id].runs))
     sim_seconds = time.perf_counter() - sim_started
-    runs_table, peds_table = store.compact(all_batches)
+    runs_table, peds_table = store.compact(all_batches, runs, carried, inputs, code)
+    report.compacted = True
     report.seconds = time.perf_counter() - started
     write_manifest(
         folder,
@@ -198,6 +205,13 @@ def run_study(
         count_runs(study, episodes),
     )
     return report
+
+
+def _holds_exactly(folder: Path, runs: list) -> bool:
+    """Whether ``runs.parquet`` holds exactly the planned runs (a study that dropped a
+    controller or a population must be compacted again)."""
+    have = pd.read_parquet(folder / "runs.parquet", columns=list(RUN_KEY))
+    return len(have) == len(runs)
 
 
 def write_manifest(

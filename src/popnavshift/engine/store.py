@@ -6,7 +6,9 @@ atomically and both tagged with the batch id and run count in the Parquet
 metadata. On resume a batch counts as done only when both shards read back
 with the right tag and row count; anything else (missing, truncated, corrupt,
 foreign) is deleted and redone, never merged. At the end the shards are
-compacted, sorted by run key, into ``runs.parquet`` and ``pedestrians.parquet``.
+compacted, sorted by run key, into ``runs.parquet`` and ``pedestrians.parquet``;
+a later run of the study carries over from them every run it still plans with
+unchanged inputs and code (:meth:`RunStore.carried`).
 """
 
 from __future__ import annotations
@@ -18,10 +20,10 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from ..io import write_atomic, write_parquet
+from ..io import write_atomic, write_json, write_parquet
 from ..tables import RUN_KEY as TABLE_RUN_KEY
 from ..tables import check_table
-from .plan import Batch
+from .plan import Batch, Run
 
 RUN_KEY = list(TABLE_RUN_KEY)
 META_KEY = b"popnavshift"
@@ -77,10 +79,62 @@ class RunStore:
             p.unlink(missing_ok=True)
         return False
 
-    def compact(self, batches: list[Batch]) -> tuple[pd.DataFrame, pd.DataFrame]:
-        """Concatenate every batch's shards into the two study tables, sorted by key."""
-        runs = pd.concat([pd.read_parquet(self._paths(b)[0]) for b in batches], ignore_index=True)
-        peds = pd.concat([pd.read_parquet(self._paths(b)[1]) for b in batches], ignore_index=True)
+    # ---- runs carried over from the compacted tables ----
+    #: stages.json entry: the inputs and code stamps the compacted tables were made with
+    RECORD = "runs"
+
+    def carried(self, planned: list[Run], inputs: str, code: dict[str, str]) -> set[tuple]:
+        """Keys of the ``planned`` runs the compacted tables already hold, made from
+        the same ``inputs`` and with the same ``code`` stamp of their controller:
+        they are not run again. Empty without a record (never compacted, or
+        compaction interrupted)."""
+        record = self._record()
+        runs_path = self.folder / "runs.parquet"
+        if (record is None or record.get("inputs") != inputs or not runs_path.exists()
+                or not (self.folder / "pedestrians.parquet").exists()):
+            return set()
+        made_with = record.get("code", {})
+        have = pd.read_parquet(runs_path, columns=RUN_KEY)
+        keys = set(zip(*(have[c] for c in RUN_KEY), strict=True))
+        return {r.key for r in planned
+                if r.key in keys and made_with.get(r.controller) == code[r.controller]}
+
+    def _record(self) -> dict | None:
+        path = self.folder / "stages.json"
+        if not path.exists():
+            return None
+        return json.loads(path.read_text()).get(self.RECORD)
+
+    def _set_record(self, record: dict | None) -> None:
+        path = self.folder / "stages.json"
+        stamps = json.loads(path.read_text()) if path.exists() else {}
+        if record is None:
+            stamps.pop(self.RECORD, None)
+        else:
+            stamps[self.RECORD] = record
+        write_json(stamps, path)
+
+    def compact(self, batches: list[Batch], planned: list[Run] | None = None,
+                carried: set[tuple] | None = None, inputs: str = "",
+                code: dict[str, str] | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+        """The two study tables, sorted by key: every batch's shards, plus the
+        ``carried`` runs (keys) of the present compacted tables, with their part as
+        ``planned`` now says. The record of ``inputs`` and ``code`` is removed first and
+        written last, so tables a crash left half-written are never carried."""
+        frames_r = [pd.read_parquet(self._paths(b)[0]) for b in batches]
+        frames_p = [pd.read_parquet(self._paths(b)[1]) for b in batches]
+        if carried:
+            part = {r.key: r.part for r in planned or []}
+            for name, frames in (("runs.parquet", frames_r), ("pedestrians.parquet", frames_p)):
+                old = pd.read_parquet(self.folder / name)
+                keys = pd.Series(list(zip(*(old[c] for c in RUN_KEY), strict=True)),
+                                 index=old.index)
+                old = old[keys.isin(carried)].copy()
+                old["part"] = keys[old.index].map(part)
+                frames.append(old)
+        self._set_record(None)
+        runs = pd.concat(frames_r, ignore_index=True)
+        peds = pd.concat(frames_p, ignore_index=True)
         if "error" not in runs.columns:  # shards written before the column existed
             runs["error"] = None
         runs = runs.sort_values(RUN_KEY, kind="stable").reset_index(drop=True)
@@ -89,4 +143,6 @@ class RunStore:
         check_table(peds, "pedestrians")
         write_parquet(runs, self.folder / "runs.parquet")
         write_parquet(peds, self.folder / "pedestrians.parquet")
+        if code is not None:
+            self._set_record({"inputs": inputs, "code": code})
         return runs, peds

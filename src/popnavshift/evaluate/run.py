@@ -22,10 +22,8 @@ A run in which the controller raises is recorded as ``controller_error`` (see
 
 from __future__ import annotations
 
-import inspect
 import json
 import re
-import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -45,7 +43,7 @@ from ..errors import ConfigError, InputError
 from ..hashing import digest
 from ..io import write_json
 from ..pipeline import read_table
-from ..plugins import controller_id, make_controller, parse_controller_id
+from ..plugins import controller_id, controller_stamp, make_controller, parse_controller_id
 from ..progress import run_progress
 from ..tables import RUN_KEY
 
@@ -93,17 +91,6 @@ def slug(identity: str) -> str:
     """A folder name for a controller id; a short hash keeps distinct ids apart."""
     s = re.sub(r"[^A-Za-z0-9_.-]+", "-", identity).strip("-")[:60] or "controller"
     return s if s == identity else f"{s}-{digest(identity)[:8]}"
-
-
-def controller_stamp(factory: Any) -> str:
-    """Hash of a controller's ``describe()`` and the source of the module defining its
-    behaviour class (or factory). Code in other modules it imports is not covered."""
-    cls = getattr(factory, "cls", type(factory))
-    try:
-        source = inspect.getsource(sys.modules[cls.__module__])
-    except (KeyError, TypeError, OSError):  # no source: a compiled or interactive class
-        source = ""
-    return digest([factory.describe(), source])
 
 
 def check(factory: Any) -> str:
