@@ -5,10 +5,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from navground import core
 
 from popnavshift.episodes import assign_slots, get_episode
 from popnavshift.sim.bench import synthetic_population
 from popnavshift.sim.controllers import CONTROLLERS
+from popnavshift.sim.controllers.check import (
+    BehaviourOnly,
+    ControllerContractError,
+    check_controller,
+)
 from popnavshift.sim.controllers.reactive import ReactiveDriver
 from popnavshift.sim.run import simulate
 
@@ -16,22 +22,6 @@ from popnavshift.sim.run import simulate
 EPISODES = ("bottleneck-w2.4-d0.12-s1.0-v2", "crossing-w1.8-d0.2-s0.6-v1",
             "sidewalk-w1.8-d0.2-s1.0-v3", "obstruction-w3.0-d0.12-s1.0-v1",
             "sidewalk-w4.2-d0.06-s0.6-v2", "head_on-w1.8-d0.06-s1.0-v1")
-
-
-class BehaviourOnly:
-    """A factory without ``loop_driver``: navground runs the Python behaviour."""
-
-    def __init__(self, factory) -> None:
-        self.factory, self.name = factory, factory.name
-
-    def build(self, kinematics, radius, speed):
-        return self.factory.build(kinematics, radius, speed)
-
-    def after_placement(self, behavior, dt):
-        self.factory.after_placement(behavior, dt)
-
-    def describe(self):
-        return self.factory.describe()
 
 
 class Watched:
@@ -116,3 +106,26 @@ def test_a_raising_driver_is_the_controllers_error_with_the_time():
     spec = get_episode(EPISODES[0])
     with pytest.raises(ControllerError, match=r"'reactive' raised RuntimeError at t = 0\.4 s"):
         simulate(spec, None, Raising(CONTROLLERS.make("reactive")))
+
+
+class Drifting(ReactiveDriver):
+    """A driver that decides like the behaviour but turns a little more."""
+
+    def step(self, step, pose, peds, ids):
+        super().step(step, pose, peds, ids)
+        if self._last is not None:
+            v, w = self._last
+            self._controller.follow_manual_cmd(core.Twist2((v, 0.0), w + 0.01,
+                                                            core.Frame.relative))
+
+
+class DriftingFactory(Watched):
+    def loop_driver(self):
+        return Drifting(self.factory.params)
+
+
+def test_the_contract_check_compares_a_driver_with_its_behaviour():
+    check_controller(CONTROLLERS.make("reactive"))
+    check_controller(CONTROLLERS.make("early_yield"))
+    with pytest.raises(ControllerContractError, match="loop driver and its behaviour part ways"):
+        check_controller(DriftingFactory(CONTROLLERS.make("reactive")))

@@ -270,6 +270,10 @@ def controller_stamp(factory: Any) -> str:
     return digest([factory.describe(), source])
 
 
+#: modules under sim/ that no run executes (the benchmark, the contract check)
+_NOT_SIMULATION = frozenset({"sim/bench.py", "sim/controllers/check.py"})
+
+
 @functools.cache
 def simulator_stamp() -> str:
     """Hash of the simulator's own code (``popnavshift.sim`` with the built-in
@@ -278,7 +282,8 @@ def simulator_stamp() -> str:
     import navground
 
     root = Path(__file__).parent
-    files = sorted(p for sub in ("sim", "episodes") for p in (root / sub).rglob("*.py"))
+    files = sorted(p for sub in ("sim", "episodes") for p in (root / sub).rglob("*.py")
+                   if p.relative_to(root).as_posix() not in _NOT_SIMULATION)
     sources = [[p.relative_to(root).as_posix(), hashlib.sha256(p.read_bytes()).hexdigest()]
                for p in files]
     return digest([getattr(navground, "__version__", ""), sources])

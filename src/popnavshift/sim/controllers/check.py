@@ -11,7 +11,10 @@ radius, wheel axis, sensing and call order) and raises
    as optimal speed;
 3. every command is finite and feasible for the kinematics
    (``kinematics.feasible(cmd) == cmd``), at both robot speeds;
-4. the same world twice gives bitwise-identical robot trajectories.
+4. the same world twice gives bitwise-identical robot trajectories;
+5. a factory that offers ``loop_driver()`` (the stepping loop's fast path, see
+   :class:`..LoopDriver`) gives, on :data:`DRIVER_EPISODES`, the same robot
+   trajectories with its driver as with its navground behaviour.
 
 :func:`robot_agent` and :func:`ped_agent` are the builders it uses; tests reuse
 them for their own tiny worlds.
@@ -161,6 +164,7 @@ def check_controller(factory: ControllerFactory, *, dt: float = 0.1, steps: int 
     """
     _check_interface(factory)
     _check_build(factory)
+    check_loop_driver(factory)
     for speed in ROBOT_SPEEDS:
         first = _run(factory, speed, dt, steps)
         second = _run(factory, speed, dt, steps)
@@ -170,3 +174,50 @@ def check_controller(factory: ControllerFactory, *, dt: float = 0.1, steps: int 
                 f"controller {factory.name!r} is not deterministic: the same world twice "
                 f"diverges at step {step} (speed {speed} m/s)",
                 hint="keep no global or cross-run state; seed any randomness from the world")
+
+
+#: a narrow crossing, a bottleneck and a sidewalk at both robot speeds, with
+#: mid-range pedestrians: the driver must adjust, yield or pass there
+DRIVER_EPISODES = ("crossing-w1.8-d0.2-s1.0-v1", "bottleneck-w2.4-d0.12-s0.6-v2",
+                   "sidewalk-w1.8-d0.2-s1.0-v3")
+
+
+class BehaviourOnly:
+    """``factory`` without its ``loop_driver``: navground runs its behaviour."""
+
+    def __init__(self, factory: ControllerFactory) -> None:
+        self.factory, self.name = factory, factory.name
+
+    def build(self, kinematics: core.Kinematics, radius: float, speed: float) -> core.Behavior:
+        return self.factory.build(kinematics, radius, speed)
+
+    def after_placement(self, behavior: core.Behavior, dt: float) -> None:
+        self.factory.after_placement(behavior, dt)
+
+    def describe(self) -> dict:
+        return self.factory.describe()
+
+
+def check_loop_driver(factory: ControllerFactory) -> None:
+    """Rule 5: raise :class:`ControllerContractError` where the factory's loop driver
+    and its behaviour part ways (the first step at which the robot's poses differ)."""
+    from ...episodes.specs import get_episode
+    from ..run import simulate
+
+    if not callable(getattr(factory, "loop_driver", None)):
+        return
+    for episode in DRIVER_EPISODES:
+        spec = get_episode(episode)
+        fast = simulate(spec, None, factory, record=True).trajectory
+        slow = simulate(spec, None, BehaviourOnly(factory), record=True).trajectory
+        assert fast is not None and slow is not None
+        a, b = fast["robot_pose"], slow["robot_pose"]
+        if a.shape != b.shape or not np.array_equal(a, b, equal_nan=True):
+            n = min(len(a), len(b))
+            differs = ~np.all((a[:n] == b[:n]) | (np.isnan(a[:n]) & np.isnan(b[:n])), axis=1)
+            step = int(np.argmax(differs)) if differs.any() else n
+            raise ControllerContractError(
+                f"controller {factory.name!r}: its loop driver and its behaviour part ways "
+                f"in {episode} at step {step}",
+                hint="the driver must decide from the same inputs as the behaviour "
+                     "(see LoopDriver); or drop loop_driver() and run the behaviour")
