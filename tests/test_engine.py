@@ -276,21 +276,3 @@ def test_edited_controller_code_reruns_that_controllers_runs(tmp_path, reference
     assert report.executed == 6 * 3 and report.reused == 6 * 3 * 2
     for ours, ref in zip(tables(folder), tables(reference), strict=True):
         pd.testing.assert_frame_equal(ours, ref)  # same code really, so same rows
-
-
-def test_the_code_stamp_follows_a_controllers_source(tmp_path, monkeypatch):
-    from popnavshift.plugins import run_code_stamp, simulator_stamp
-
-    module = tmp_path / "my_ctrl.py"
-    source = (
-        "from popnavshift.sim.controllers.robot_orca import RobotORCA\n"
-        "class Mine(RobotORCA):\n"
-        "    name = 'mine'\n"
-    )
-    module.write_text(source)
-    monkeypatch.syspath_prepend(str(tmp_path))
-    before = run_code_stamp("my_ctrl:Mine")
-    assert before == run_code_stamp("my_ctrl:Mine") != run_code_stamp("robot_orca")
-    module.write_text(source + "    # tuned\n")
-    assert run_code_stamp("my_ctrl:Mine") != before
-    assert run_code_stamp("none") == simulator_stamp()

@@ -177,8 +177,12 @@ def test_worst_run_prefers_a_collision_then_the_largest_tail():
 
 
 def test_an_edited_controller_module_gets_a_new_stamp(tmp_path, monkeypatch):
-    from popnavshift.evaluate.run import controller_stamp
-    from popnavshift.plugins import make_controller
+    from popnavshift.plugins import (
+        controller_stamp,
+        make_controller,
+        run_code_stamp,
+        simulator_stamp,
+    )
 
     module = tmp_path / "stamped_ctrl.py"
     module.write_text("from slow_near_peds.controller import SlowNearPeds\n\n\n"
@@ -190,8 +194,11 @@ def test_an_edited_controller_module_gets_a_new_stamp(tmp_path, monkeypatch):
     assert controller_stamp(make_controller("stamped_ctrl:Stamped")) == before
     assert controller_stamp(make_controller("slow_near_peds.controller:SlowNearPeds",
                                             {"slow_distance": 3.0})) != before
+    run_stamp = run_code_stamp("stamped_ctrl:Stamped")  # the simulator's code and its own
+    assert run_stamp != run_code_stamp("robot_orca") and run_code_stamp("none") == simulator_stamp()
     module.write_text(module.read_text() + "# edited\n")
     assert controller_stamp(factory) != before
+    assert run_code_stamp("stamped_ctrl:Stamped") != run_stamp
 
 
 def test_a_study_without_no_robot_runs_or_a_baseline_gets_them_run_once(tmp_path):

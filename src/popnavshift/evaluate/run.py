@@ -9,8 +9,9 @@
    which reuses every finished baseline and no-robot run;
 3. plans the controller's runs on the study's evaluated part (``main``) as batches
    of their own: a batch id hashes its run keys, so these never change the
-   baseline batches; it also hashes the controller's code (:func:`controller_stamp`),
-   so an edited controller is run again. Their shards live in the baseline folder's
+   baseline batches; it also hashes the code they run (the controller's module and
+   the simulator, :func:`popnavshift.plugins.run_code_stamp`), so edited code is run
+   again. Their shards live in the baseline folder's
    store (reused by any later evaluation of the same controller and code); the
    compacted tables go to ``out``;
 4. returns the evaluated part's runs and pedestrians, baselines + controller +
@@ -43,7 +44,7 @@ from ..errors import ConfigError, InputError
 from ..hashing import digest
 from ..io import write_json
 from ..pipeline import read_table
-from ..plugins import controller_id, controller_stamp, make_controller, parse_controller_id
+from ..plugins import controller_id, make_controller, parse_controller_id, run_code_stamp
 from ..progress import run_progress
 from ..tables import RUN_KEY
 
@@ -175,9 +176,9 @@ def _run_extra(study: Study, part_name: str, controllers: tuple[str, ...], base_
                       all_episodes(seed=study.seed))
     stamps = json.loads((base_folder / "stages.json").read_text())
     # the runner's stamp of the batches' inputs (a changed population or episode draw
-    # gives new batch ids), plus each controller's code: an edited controller keeps
-    # its name, and its old runs must not be reused
-    code = [controller_stamp(make_controller(c)) for c in controllers]
+    # gives new batch ids), plus the code they run: an edited controller keeps its
+    # name, and its old runs (or any run of an older simulator) must not be reused
+    code = [run_code_stamp(c) for c in (NO_ROBOT, *controllers)]
     all_batches = batches(runs, inputs=digest([stamps["populations"], stamps["episodes"], code]))
     store = _SharedShards(base_folder, out)
     todo = [b for b in all_batches if not store.is_done(b)]
