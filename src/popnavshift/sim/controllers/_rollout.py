@@ -127,10 +127,12 @@ def segments_distance(ax, ay, bx, by, cx, cy, dx, dy):
     d4 = _cross(dx - cx, dy - cy, bx - cx, by - cy)
     if d1 * d2 < 0.0 and d3 * d4 < 0.0:
         return 0.0
-    return min(point_segment_distance(ax, ay, cx, cy, dx, dy),
-               point_segment_distance(bx, by, cx, cy, dx, dy),
-               point_segment_distance(cx, cy, ax, ay, bx, by),
-               point_segment_distance(dx, dy, ax, ay, bx, by))
+    # one square root of the smallest square: sqrt is monotonic and correctly
+    # rounded, so this is exactly the smallest of the four distances
+    return math.sqrt(min(point_segment_distance_sq(ax, ay, cx, cy, dx, dy),
+                         point_segment_distance_sq(bx, by, cx, cy, dx, dy),
+                         point_segment_distance_sq(cx, cy, ax, ay, bx, by),
+                         point_segment_distance_sq(dx, dy, ax, ay, bx, by)))
 
 
 # ------------------------------------------------------------------------ rollouts
@@ -165,15 +167,25 @@ def goal_rollout(x, y, th, gx, gy, speed, v_top, wheel_max, axis, w_max, rot_tau
 
 
 @njit(cache=True)
-def arc_rollout(x, y, th, v, w, dt, xs, ys):
-    """Constant (v, w) rollout into ``xs, ys`` (n+1); returns the final heading."""
+def arc_headings(th, w, dt, cos_out, sin_out):
+    """cos and sin of the headings of a constant-``w`` rollout from ``th`` (one per
+    step, as :func:`arc_rollout` integrates them); returns the final heading. They
+    depend on w only, so arcs that share a turn rate share them."""
+    for k in range(cos_out.shape[0]):
+        cos_out[k], sin_out[k] = math.cos(th), math.sin(th)
+        th += w * dt
+    return th
+
+
+@njit(cache=True)
+def arc_rollout(x, y, v, dt, cos_th, sin_th, xs, ys):
+    """Constant-speed rollout into ``xs, ys`` (n+1) along the headings given by
+    :func:`arc_headings` (navground's Euler step: position first, then heading)."""
     xs[0], ys[0] = x, y
     for k in range(xs.shape[0] - 1):
-        x += v * math.cos(th) * dt
-        y += v * math.sin(th) * dt
-        th += w * dt
+        x += v * cos_th[k] * dt
+        y += v * sin_th[k] * dt
         xs[k + 1], ys[k + 1] = x, y
-    return th
 
 
 # ------------------------------------------------------------- reactive sampling
@@ -343,12 +355,20 @@ def reactive_command(x, y, th, gx, gy, cfg, peds, walls, discs):
     reach = max(v_top * horizon, 1e-9)
     w_turn = min(w_max, math.pi / horizon)  # at most half a turn per rollout
     best, best_v, best_w = -np.inf, 0.0, 0.0
+    cos_th, sin_th = np.empty((n_w, n_steps)), np.empty((n_w, n_steps))
+    th_end = np.empty(n_w)
+    headings_of = -1.0  # the turn-rate limit the headings were computed for
     for i in range(n_v):
         v = v_top * i / max(n_v - 1, 1)
         w_lim = min(w_turn, 2.0 * max(0.0, wheel_max - v) / axis)
+        if w_lim != headings_of:  # slow levels share the w_turn limit, and so the trig
+            for j in range(n_w):
+                w = -w_lim + 2.0 * w_lim * j / max(n_w - 1, 1)
+                th_end[j] = arc_headings(th, w, dt, cos_th[j], sin_th[j])
+            headings_of = w_lim
         for j in range(n_w):
             w = -w_lim + 2.0 * w_lim * j / max(n_w - 1, 1)
-            th_end = arc_rollout(x, y, th, v, w, dt, xs, ys)
+            arc_rollout(x, y, v, dt, cos_th[j], sin_th[j], xs, ys)
             free, clear = sweep(xs, ys, radius, tracks, active, movers, near_walls, thr, cap)
             if not free:
                 continue
@@ -356,7 +376,7 @@ def reactive_command(x, y, th, gx, gy, cfg, peds, walls, discs):
             d_end = math.hypot(gx - xe, gy - ye)
             heading, open_path = 1.0, cap
             if d_end > tol:
-                heading = math.cos(wrap_angle(math.atan2(gy - ye, gx - xe) - th_end))
+                heading = math.cos(wrap_angle(math.atan2(gy - ye, gx - xe) - th_end[j]))
                 open_path = sight_clearance(xe, ye, gx, gy, sight, horizon, radius, peds,
                                             walls, discs) - buffer
             score = (weights[0] * (d0 - d_end) / reach + weights[1] * heading
