@@ -24,24 +24,16 @@ EPISODES = ("bottleneck-w2.4-d0.12-s1.0-v2", "crossing-w1.8-d0.2-s0.6-v1",
             "sidewalk-w4.2-d0.06-s0.6-v2", "head_on-w1.8-d0.06-s1.0-v1")
 
 
-class Watched:
-    """The factory itself, keeping the drivers it makes."""
+class Watched(BehaviourOnly):
+    """The factory itself, loop driver included, keeping the drivers it makes."""
 
     def __init__(self, factory) -> None:
-        self.factory, self.name, self.drivers = factory, factory.name, []
-
-    def build(self, kinematics, radius, speed):
-        return self.factory.build(kinematics, radius, speed)
-
-    def after_placement(self, behavior, dt):
-        self.factory.after_placement(behavior, dt)
+        super().__init__(factory)
+        self.drivers = []
 
     def loop_driver(self):
         self.drivers.append(self.factory.loop_driver())
         return self.drivers[-1]
-
-    def describe(self):
-        return self.factory.describe()
 
 
 def same(a, b) -> bool:

@@ -192,16 +192,11 @@ class BehaviorClass:
         self.params = dict(params)
 
     def build(self, kinematics: core.Kinematics, radius: float, speed: float) -> core.Behavior:
-        from .sim.controllers._params import set_property
-        from .sim.controllers.navground_type import BASE_PARAMS
+        from .sim.controllers.navground_type import apply_params
 
         behavior = self.cls(kinematics, radius)
         behavior.optimal_speed = speed
-        for key, value in self.params.items():
-            if key in BASE_PARAMS:
-                setattr(behavior, key, value)
-            else:
-                set_property(behavior, key, value, controller=self.name)
+        apply_params(behavior, self.params, self.name)
         return behavior
 
     def after_placement(self, behavior: core.Behavior, dt: float) -> None:

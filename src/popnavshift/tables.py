@@ -37,6 +37,9 @@ BLOCK_ITEMS: tuple[str, ...] = (
     "trust",
     "urgency",
 )
+#: response-table columns: one action per probe, one level value per block item
+ACTION_COLUMNS: tuple[str, ...] = tuple(f"action_{i}" for i in range(1, 9))
+Q_COLUMNS: tuple[str, ...] = tuple(f"q_{k}" for k in BLOCK_ITEMS)
 ACTIONS: tuple[str, ...] = ("continue", "slow", "stop", "yield", "pass", "detour")
 VARIANTS: tuple[str, ...] = ("baseline", "deadline")
 
@@ -93,8 +96,8 @@ RESPONSES = declare(
         Column("respondent", "str"),
         Column("model", "str"),
         Column("probe_set", "str"),
-        *_cols("str", [f"action_{i}" for i in range(1, 9)]),
-        *_cols("float", [f"q_{k}" for k in BLOCK_ITEMS]),
+        *_cols("str", ACTION_COLUMNS),
+        *_cols("float", Q_COLUMNS),
     ),
     ("persona_id", "variant"),
 )

@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from ..hashing import stable_seed
-from ..tables import PARAMS, check_table
+from ..tables import ACTION_COLUMNS, PARAMS, Q_COLUMNS, check_table
 
 #: Response blocks for the single-block runs: item columns (and whether actions vary).
 BLOCKS: dict[str, tuple[tuple[str, ...], bool]] = {
@@ -29,16 +29,6 @@ BLOCKS: dict[str, tuple[tuple[str, ...], bool]] = {
     "caution": (("q_clearance", "q_yielding", "q_gap", "q_detour"), True),
     "trust": (("q_trust",), False),
 }
-ACTION_COLUMNS = tuple(f"action_{i}" for i in range(1, 9))
-Q_COLUMNS = (
-    "q_clearance",
-    "q_waiting",
-    "q_yielding",
-    "q_gap",
-    "q_detour",
-    "q_trust",
-    "q_urgency",
-)
 
 
 def label(kind: str, detail: str | None = None, base: str = "A") -> str:

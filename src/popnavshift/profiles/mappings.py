@@ -35,7 +35,7 @@ import pandas as pd
 
 from ..errors import InputError
 from ..registry import Registry
-from ..tables import ACTIONS, BLOCK_ITEMS, PARAM_RANGES, PARAMS, check_table
+from ..tables import ACTION_COLUMNS, ACTIONS, BLOCK_ITEMS, PARAM_RANGES, PARAMS, check_table
 
 #: Ordered caution score of each action (pass is the least, stop the most accommodating).
 ACTION_SCORE: dict[str, float] = {
@@ -62,12 +62,9 @@ MappingResult = tuple[dict[str, np.ndarray], np.ndarray]  # (z per control, caut
 #: name → function(q) -> (z, C); the registry's "factory" is the mapping itself.
 MAPPINGS: Registry[MappingResult] = Registry("mapping")
 
-ACTION_COLUMNS = [f"action_{i}" for i in range(1, 9)]
-
-
 def _q(responses: pd.DataFrame) -> Q:
     q = {k: responses[f"q_{k}"].to_numpy(float) for k in BLOCK_ITEMS}
-    acts = responses[ACTION_COLUMNS].to_numpy(str)
+    acts = responses[list(ACTION_COLUMNS)].to_numpy(str)
     q["a"] = np.vectorize(ACTION_SCORE.__getitem__, otypes=[float])(acts).mean(axis=1)
     q["a_share"] = np.isin(acts, ACCOMMODATING).mean(axis=1)
     return q

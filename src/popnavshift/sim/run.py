@@ -18,6 +18,7 @@ Without a robot the outcome is ``none`` and robot metrics are NaN.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import Any, cast
@@ -55,7 +56,7 @@ class SimResult:
     ped_columns: dict
     trajectory: dict | None = None
 
-    @property
+    @functools.cached_property
     def pedestrians(self) -> pd.DataFrame:
         return pedestrian_table([self.ped_columns])
 

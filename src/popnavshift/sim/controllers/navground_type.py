@@ -28,6 +28,16 @@ BASE_PARAMS: dict[str, Param] = {
 _KINDS = {"float": float, "int": int, "bool": bool, "str": str}
 
 
+def apply_params(behavior: core.Behavior, params: dict[str, Any], controller: str) -> None:
+    """Base parameters (:data:`BASE_PARAMS`) as attributes, anything else as a navground
+    property, read back after setting (:func:`._params.set_property`)."""
+    for key, value in params.items():
+        if key in BASE_PARAMS:
+            setattr(behavior, key, value)
+        else:
+            set_property(behavior, key, value, controller=controller)
+
+
 def navground_types() -> list[str]:
     """Names of the behaviour types registered in navground right now."""
     return sorted(t for t in core.Behavior.types if t)
@@ -70,11 +80,7 @@ class NavgroundType:
         behavior.optimal_speed = speed
         behavior.heading_behavior = core.Behavior.Heading.velocity
         base = {k: p.default for k, p in BASE_PARAMS.items()}
-        for key, value in {**base, **self.params}.items():
-            if key in BASE_PARAMS:
-                setattr(behavior, key, value)
-            else:
-                set_property(behavior, key, value, controller=self.name)
+        apply_params(behavior, {**base, **self.params}, self.name)
         return behavior
 
     def after_placement(self, behavior: core.Behavior, dt: float) -> None:
