@@ -36,6 +36,10 @@ class PopulationSettings:
     n: int | None = 600
     seed: int = 0
     missing: str = "require"
+    #: release only: codebook file for other layouts, record sources kept, manifest check
+    codebook: str | None = None
+    sources: tuple[str, ...] | None = None
+    verify_checksums: bool = True
     respondent: str = "rule"
     respondent_options: dict[str, Any] = field(default_factory=dict)
     matched_n: int = MATCHED_N_DEFAULT
@@ -66,7 +70,15 @@ def read_table(path: Path, stage: str) -> pd.DataFrame:
 def run_personas(folder: Path, s: PopulationSettings, target: Path | None = None) -> pd.DataFrame:
     from .personas.load import load_personas
 
-    personas, provenance = load_personas(s.source, n=s.n, seed=s.seed, missing=s.missing)
+    personas, provenance = load_personas(
+        s.source,
+        n=s.n,
+        seed=s.seed,
+        missing=s.missing,
+        codebook=s.codebook,
+        sources=s.sources,
+        verify_checksums=s.verify_checksums,
+    )
     target = target or folder / "personas.parquet"
     write_parquet(personas, target)
     write_json(provenance, target.with_suffix(".json"))

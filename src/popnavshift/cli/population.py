@@ -61,7 +61,8 @@ def personas(
     source: Annotated[
         str,
         typer.Option(
-            help="'synthetic', a CSV/JSONL/Parquet file, or a MatrAIx Persona 1M release folder."
+            help="'synthetic', a CSV/JSONL/Parquet file, a MatrAIx Persona 1M release folder, "
+            "or hf://MatrAIx2026/MatrAIx_Persona_1M_Public_Release (needs the 'hf' extra)."
         ),
     ] = "synthetic",
     n: Annotated[int, typer.Option(help="Number of personas to sample.")] = 600,
@@ -73,19 +74,41 @@ def personas(
             "(skip and count), fill (schema default), error."
         ),
     ] = "require",
+    codebook: Annotated[
+        Path | None,
+        typer.Option(help="Release only: codebook JSON of a folder not laid out as published."),
+    ] = None,
+    only_source: Annotated[
+        list[str] | None,
+        typer.Option(help="Release only: keep records of this source (gss, wiki...); repeat."),
+    ] = None,
+    verify_checksums: Annotated[
+        bool, typer.Option(help="Release only: check shards against manifest.json.")
+    ] = True,
 ) -> None:
     """Write personas.parquet: persona records from a generator, a table or a release.
 
     Example: popnavshift personas --source synthetic --n 600 --seed 0 --out study
+
+    From a release, minors (by age_bracket) are never sampled; personas.json records
+    what each step dropped and the source mix.
     """
     from ..pipeline import run_personas
 
     target = out if out.suffix == ".parquet" else out / "personas.parquet"
     study_folder = folder(target.parent)
-    df = run_personas(
-        study_folder, _settings(source=source, n=n, seed=seed, missing=missing), target
+    settings = _settings(
+        source=source,
+        n=n,
+        seed=seed,
+        missing=missing,
+        codebook=None if codebook is None else str(codebook),
+        sources=tuple(only_source) if only_source else None,
+        verify_checksums=verify_checksums,
     )
-    console.print(f"[green]{len(df)} personas[/] → {target}")
+    df = run_personas(study_folder, settings, target)
+    mix = ", ".join(f"{k} {v}" for k, v in df["source"].value_counts().sort_index().items())
+    console.print(f"[green]{len(df)} personas[/] ({mix}) → {target}", highlight=False)
 
 
 @app.command()

@@ -74,6 +74,9 @@ def population_settings(study: Study) -> PopulationSettings:
         n=study.personas.n,
         seed=study.seed,
         missing=study.personas.missing,
+        codebook=study.personas.codebook,
+        sources=study.personas.sources,
+        verify_checksums=study.personas.verify_checksums,
         respondent=study.respondent.name,
         respondent_options=dict(study.respondent.options),
         matched_n=study.matched_n,
@@ -86,7 +89,11 @@ def population_settings(study: Study) -> PopulationSettings:
 
 def _stage_stamps(s: PopulationSettings) -> dict[str, str]:
     stamps: dict[str, str] = {}
-    stamps["personas"] = digest(["personas", s.source, s.n, s.seed, s.missing])
+    release = [s.codebook, s.sources, s.verify_checksums]
+    stamps["personas"] = digest(  # release options only when set: old stamps stay valid
+        ["personas", s.source, s.n, s.seed, s.missing]
+        + (release if release != [None, None, True] else [])
+    )
     stamps["responses"] = digest(
         [
             "responses",

@@ -33,6 +33,9 @@ class PersonaSource(Strict):
     source: str = "synthetic"
     n: int = Field(600, ge=1)
     missing: Literal["require", "fill", "error"] = "require"
+    codebook: str | None = None  # release only: codebook file of another layout
+    sources: tuple[str, ...] | None = None  # release only: record sources kept
+    verify_checksums: bool = True  # release only: shards against manifest.json
 
 
 class RespondentSpec(Strict):

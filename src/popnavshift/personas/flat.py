@@ -79,7 +79,11 @@ def check_vocabulary(values: pd.Series, field: str, where: str, first_row: int =
 
 
 def apply_missing(
-    table: pd.DataFrame, missing: str, where: str, first_row: int = 1
+    table: pd.DataFrame,
+    missing: str,
+    where: str,
+    first_row: int = 1,
+    row_numbers: np.ndarray | None = None,
 ) -> tuple[pd.DataFrame, int, int]:
     """Apply the missing-field policy to required fields; returns (table, dropped, filled).
 
@@ -87,7 +91,7 @@ def apply_missing(
     ``fill`` sets each missing required value to the field's schema ``defaultValue``
     (counted in ``filled``) and raises when the field has none; ``error`` raises on
     the first missing value. Optional fields stay missing under every policy. Rows
-    in messages are ``first_row`` + position in ``table``.
+    in messages are ``row_numbers[position]`` when given, else ``first_row`` + position.
     """
     check_missing_policy(missing)
     absent = table[list(REQUIRED_FIELDS)].isna().to_numpy()
@@ -96,11 +100,14 @@ def apply_missing(
     if missing == "require":
         keep = ~absent.any(axis=1)
         return table.iloc[np.flatnonzero(keep)], int((~keep).sum()), 0
+    def row_number(position: int) -> int:
+        return first_row + position if row_numbers is None else int(row_numbers[position])
+
     row, col = (int(i[0]) for i in np.nonzero(absent))
     field = REQUIRED_FIELDS[col]
     if missing == "error":
         raise InputError(
-            f"{where}: row {first_row + row}: required field {field!r} is missing",
+            f"{where}: row {row_number(row)}: required field {field!r} is missing",
             hint="use missing='require' to skip such records or 'fill' for schema defaults",
         )
     table = table.copy()
@@ -111,7 +118,7 @@ def apply_missing(
         if not isinstance(default, str):
             row = int(np.flatnonzero(absent[:, j])[0])
             raise InputError(
-                f"{where}: row {first_row + row}: required field {field!r} is missing and "
+                f"{where}: row {row_number(row)}: required field {field!r} is missing and "
                 "has no schema default to fill",
                 hint="use missing='require' to skip such records",
             )

@@ -1,7 +1,11 @@
 """Stage 1 entry point: persona records from any source, sampled, checked, with provenance.
 
 ``source`` is ``"synthetic"`` (the seeded generator), a flat table file (CSV, JSONL,
-Parquet) or a MatrAIx release folder. Missing-field policy (required fields only;
+Parquet), a MatrAIx release folder or ``hf://owner/name`` (that release, fetched
+with ``huggingface_hub`` and cached). For a release, ``codebook`` names a codebook
+file for other layouts, ``sources`` restricts the sample to those record sources,
+and ``verify_checksums`` checks shards against ``manifest.json``; minors are always
+excluded (see ``matraix.py``). Missing-field policy (required fields only;
 optional fields simply stay missing):
 
 - ``require`` (default): records lacking a required field are skipped and counted
@@ -22,6 +26,7 @@ The synthetic source generates exactly ``n`` (600 when ``n`` is None).
 from __future__ import annotations
 
 import difflib
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +37,7 @@ from ..errors import ConfigError, InputError
 from ..tables import PERSONAS, check_table
 from .flat import apply_missing, check_missing_policy, read_flat_table, take_sample
 from .matraix import read_release
+from .release import fetch_release, is_hub_source
 from .synthetic import generate_personas
 
 SYNTHETIC = "synthetic"
@@ -39,7 +45,13 @@ SYNTHETIC_DEFAULT_N = 600
 
 
 def load_personas(
-    source: str | Path, n: int | None = 600, seed: int = 0, missing: str = "require"
+    source: str | Path,
+    n: int | None = 600,
+    seed: int = 0,
+    missing: str = "require",
+    codebook: str | Path | None = None,
+    sources: Sequence[str] | None = None,
+    verify_checksums: bool = True,
 ) -> tuple[pd.DataFrame, dict]:
     """Load ``n`` persona records from ``source``; returns (personas table, provenance).
 
@@ -52,15 +64,29 @@ def load_personas(
         raise ConfigError(f"n must be a positive integer or None, got {n!r}")
     check_missing_policy(missing)
     if source == SYNTHETIC:
+        _check_release_only(codebook, sources)
         table = generate_personas(SYNTHETIC_DEFAULT_N if n is None else n, seed)
         prov: dict[str, Any] = {"kind": SYNTHETIC, "path": None, "records_scanned": len(table)}
         prov |= {"records_dropped_missing": 0, "values_filled": 0}
     else:
-        path = _existing_path(str(source))
+        path = fetch_release(str(source)) if is_hub_source(str(source)) else _existing_path(
+            str(source)
+        )
         if path.is_dir():
-            table, details = read_release(path, n, seed, missing)
+            table, details = read_release(
+                path,
+                n,
+                seed,
+                missing,
+                codebook=codebook,
+                sources=sources,
+                verify_checksums=verify_checksums,
+            )
             prov = {"kind": "matraix", "path": str(path), **details}
+            if is_hub_source(str(source)):
+                prov["hub"] = str(source)
         else:
+            _check_release_only(codebook, sources)
             table, prov = _load_flat(path, n, seed, missing)
         _check_enough(table, n, path, prov)
     table = table.sort_values("persona_id", kind="stable").reset_index(drop=True)
@@ -75,6 +101,14 @@ def load_personas(
         },
     }
     return table, prov
+
+
+def _check_release_only(codebook: object, sources: object) -> None:
+    if codebook is not None or sources is not None:
+        raise ConfigError(
+            "codebook and sources apply to a MatrAIx release only",
+            hint="give a release folder or hf:// source, or drop --codebook/--only-source",
+        )
 
 
 def _load_flat(path: Path, n: int | None, seed: int, missing: str) -> tuple[pd.DataFrame, dict]:
@@ -109,5 +143,5 @@ def _existing_path(source: str) -> Path:
         f"persona source {source!r} is neither {SYNTHETIC!r} nor an existing file or folder",
         hint=f"did you mean {SYNTHETIC!r}?"
         if close
-        else "give a CSV/JSONL/Parquet file or a MatrAIx release folder",
+        else "give a CSV/JSONL/Parquet file, a MatrAIx release folder or hf://owner/name",
     )

@@ -1,47 +1,46 @@
 """Reader for a MatrAIx Persona 1M release folder (SPEC §2c), streamed shard by shard.
 
-Format, as SPEC §2 states it:
+Where the files are is ``release.py``'s business; this module decodes them. Row
+format of a shard (the producer's ``UNIFIED_SCHEMA``):
 
-- Parquet shards with an id column (``persona_id``, or ``id`` when absent) and
-  ``attributes``: 4-bit codes packed two per byte; the field in codebook slot i is
-  the low nibble of byte i // 2 when i is even, the high nibble when i is odd; a
-  code indexes that field's ``values`` in the codebook.
-- ``null_bitmap``: ``np.packbits(missing, bitorder="little")``, so slot i is bit
-  i % 8 of byte i // 8; a set bit means missing; a null bitmap means nothing missing.
-- ``attribute_overrides``: field id → value string, taking precedence over the
-  codes; a null value means "missing".
-- A codebook JSON in the folder whose field order defines the slots.
+- ``source`` (gss, amazon, stackoverflow, wiki, prism, synthetic, …),
+  ``source_row_index`` and ``source_record_id``. The persona id is
+  ``source:source_record_id`` (``source:#source_row_index`` when the record id is
+  null): stable across shard layouts and unique, duplicates raise.
+- ``attributes``: binary(645), 4-bit codes two per byte; the field in codebook
+  slot i is the low nibble of byte i // 2 when i is even, the high nibble when i is
+  odd; a code indexes that field's ``values`` in the codebook.
+- ``null_bitmap``: binary(162), ``np.packbits(missing, bitorder="little")``; a set bit
+  means missing; a null bitmap means nothing missing. Rows are sparse (a gss row
+  has about 15 of 1,290 fields, a synthetic row all of them).
+- ``attribute_overrides``: list<struct{field_index, value}>, free-text values
+  outside the codebook. We have no level for them, so an overridden field is
+  missing (and its code, 0, is not read).
 
-Assumptions where the release itself is not at hand (each fails loudly if wrong):
+Codebook: ``{"format": "persona_codes", "columns": [{"id", "label", "category",
+"values"}, …]}``; the column order defines the slots. For other layouts (via
+``--codebook``) the columns may also be a top-level list or sit under ``fields`` or
+``dimensions``, an entry's id under ``field_id`` or ``name`` and its values under
+``levels`` (a list in code order, or an object code → value). Codebook values map
+onto the shipped vocabulary by exact text, else ignoring case and surrounding
+blanks; any other value of a field we use is an error, even if no record uses it.
 
-- Codebook: ``codebook.json`` in the folder, else the single ``*codebook*.json``
-  anywhere below it. Its top level is a list of fields or an object holding one
-  under ``fields``, ``columns`` or ``dimensions``. A field is an object with its id
-  under ``id``, ``field_id`` or ``name`` and its values under ``values`` or
-  ``levels`` (a list in code order, or an object code → value), or a bare id
-  string (a slot we cannot decode). Every entry takes one slot.
-- Codebook values map onto the shipped vocabulary by exact text, else ignoring
-  case and surrounding blanks; any other value of a field we use is an error,
-  even if no record uses it. Optional fields absent from the codebook stay missing.
-- Shards: every ``*.parquet`` below the folder, in sorted relative-path order.
-  ``null_bitmap`` and ``attribute_overrides`` columns may be absent (nothing
-  missing, no overrides). A null ``attributes`` value means all fields missing.
-- ``attributes`` may be longer than ``ceil(slots / 2)`` bytes (padding), never
-  shorter; a short ``null_bitmap`` reads as zeros beyond its end.
-- ``attribute_overrides`` is a JSON object string, a Parquet map or a struct;
-  override values are value strings (not codes); keys we do not use are ignored.
+Sampler policy, applied in this order before sampling: only the ``sources`` named
+(all when None); minors excluded (``age_bracket`` whose upper bound is under 18,
+e.g. "Under 5", "13-17"; a record without an age bracket is kept); the missing
+policy of ``flat.apply_missing`` on our required fields. Each step's count is in
+the provenance, with the records scanned and usable per source.
 
 Sampling keeps the n records with the smallest ``sample_key(seed, persona_id)``
-(see ``flat.py``) among those the missing policy keeps. Memory holds at most
-n + ``batch_size`` records. Duplicate ids are detected when both copies compete for
-the sample (the only case in which they could change it).
+(see ``flat.py``). Memory holds at most n + ``batch_size`` records. Duplicate ids
+are detected when both copies compete for the sample (the only case in which they
+could change it).
 """
 
 from __future__ import annotations
 
-import json
-from collections.abc import Iterator
-from dataclasses import dataclass
+from collections import Counter
+from collections.abc import Iterator, Sequence
 from functools import partial
 from pathlib import Path
 
@@ -52,24 +51,16 @@ import pyarrow.parquet as pq
 
 from ..errors import ConfigError, InputError
 from ..tables import PERSONAS
-from .fields import PERSONA_FIELDS, REQUIRED_FIELDS, vocabulary
-from .flat import ID_COLUMNS, apply_missing, check_missing_policy, sample_key
+from .codebook import Codebook, read_codebook
+from .decode import decode_batch
+from .flat import apply_missing, check_missing_policy, sample_key
+from .release import codebook_path, find_shards, read_manifest, verify_shard
 
 DEFAULT_BATCH_SIZE = 65_536
-CODEBOOK_NAME = "codebook.json"
-_LIST_KEYS = ("fields", "columns", "dimensions")
-_ID_KEYS = ("id", "field_id", "name")
-_VALUE_KEYS = ("values", "levels")
+ROW_COLUMNS = ("source", "source_row_index", "source_record_id", "attributes")
+OPTIONAL_COLUMNS = ("null_bitmap", "attribute_overrides")
 
-
-@dataclass(frozen=True)
-class Codebook:
-    """The slots of the fields we use and their values (already in our vocabulary)."""
-
-    path: Path
-    n_slots: int
-    slots: dict[str, int]  # field id → slot i
-    values: dict[str, tuple[str, ...]]  # field id → value of each code
+__all__ = ["Codebook", "decode_batch", "read_codebook", "read_release"]
 
 
 def read_release(
@@ -78,12 +69,16 @@ def read_release(
     seed: int,
     missing: str = "require",
     batch_size: int = DEFAULT_BATCH_SIZE,
+    codebook: str | Path | None = None,
+    sources: Sequence[str] | None = None,
+    verify_checksums: bool = True,
 ) -> tuple[pd.DataFrame, dict]:
     """Sample ``n`` records (all if None) from a release folder; returns (table, provenance).
 
-    The table has the ``personas`` columns (``source`` = folder name / shard path),
-    in no particular order. Provenance: codebook, shards, batch_size,
-    records_scanned, records_dropped_missing, values_filled, scanned_per_shard.
+    The table has the ``personas`` columns (``source`` = the record's source), in no
+    particular order. Provenance: codebook, codebook_format, shards, checksums,
+    batch_size, sources, records_scanned, scanned_per_source, records_other_source,
+    records_excluded_minor, records_dropped_missing, values_filled, usable_per_source.
     """
     check_missing_policy(missing)
     if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
@@ -91,172 +86,86 @@ def read_release(
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"{folder}: no such release folder")
-    codebook = read_codebook(folder)
+    book = read_codebook(codebook_path(folder, codebook))
     shards = find_shards(folder)
-    names = [f"{folder.name}/{shard.relative_to(folder).as_posix()}" for shard in shards]
+    checksums = read_manifest(folder) if verify_checksums else None
+    wanted = None if sources is None else frozenset(sources)
+    counts: Counter[str] = Counter()
+    scanned: Counter[str] = Counter()
+    usable: Counter[str] = Counter()
     kept: pd.DataFrame | None = None
-    scanned, dropped, filled = dict.fromkeys(names, 0), 0, 0
-    for shard, name in zip(shards, names, strict=True):
+    for shard in shards:
+        if checksums is not None:
+            verify_shard(folder, shard, checksums)
+        name = shard.relative_to(folder).as_posix()
+        first_row = 1
         for batch in _iter_batches(shard, batch_size):
-            first_row = scanned[name] + 1
-            scanned[name] += batch.num_rows
-            records = decode_batch(batch, codebook, str(shard), first_row)
-            records["source"] = name
+            records = decode_batch(batch, book, str(shard), first_row)
+            records["_where"] = name
             records["_row"] = np.arange(first_row, first_row + len(records))
-            records, n_dropped, n_filled = apply_missing(records, missing, str(shard), first_row)
-            dropped, filled = dropped + n_dropped, filled + n_filled
+            first_row += batch.num_rows
+            scanned.update(records["source"])
+            records = _apply_policy(records, wanted, missing, str(shard), counts)
+            usable.update(records["source"])
             kept = _keep_smallest(kept, records, n, seed)
+    _check_sources_seen(wanted, scanned, folder)
     prov = {
-        "codebook": str(codebook.path),
-        "shards": names,
+        "codebook": str(book.path),
+        "codebook_format": book.format,
+        "shards": [s.relative_to(folder).as_posix() for s in shards],
+        "checksums": _checksum_note(verify_checksums, checksums),
         "batch_size": batch_size,
+        "sources": None if wanted is None else sorted(wanted),
         "records_scanned": sum(scanned.values()),
-        "records_dropped_missing": dropped,
-        "values_filled": filled,
-        "scanned_per_shard": scanned,
+        "scanned_per_source": dict(sorted(scanned.items())),
+        "records_other_source": counts["other_source"],
+        "records_excluded_minor": counts["minor"],
+        "records_dropped_missing": counts["dropped"],
+        "values_filled": counts["filled"],
+        "usable_per_source": dict(sorted(usable.items())),
     }
     if kept is None:
         kept = pd.DataFrame(columns=PERSONAS.names)
     return kept[PERSONAS.names].reset_index(drop=True), prov
 
 
-def read_codebook(folder: Path) -> Codebook:
-    """Find, parse and check the release codebook (see the module docstring)."""
-    path = _find_codebook(folder)
-    try:
-        doc = json.loads(path.read_text("utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"{path}: unreadable codebook: {exc}") from exc
-    entries = (
-        doc
-        if isinstance(doc, list)
-        else next(
-            (doc[k] for k in _LIST_KEYS if isinstance(doc, dict) and isinstance(doc.get(k), list)),
-            None,
-        )
-    )
-    if entries is None:
-        raise InputError(
-            f"{path}: codebook should be a list of fields or hold one under "
-            f"{', '.join(repr(k) for k in _LIST_KEYS)}"
-        )
-    ids = [_entry_id(e, path, i) for i, e in enumerate(entries)]
-    slots = {fid: i for i, fid in enumerate(ids) if fid in PERSONA_FIELDS}
-    absent = [f for f in REQUIRED_FIELDS if f not in slots]
-    if absent:
-        raise InputError(f"{path}: codebook lacks required field(s) {', '.join(absent)}")
-    values = {f: _entry_values(entries[i], f, path) for f, i in slots.items()}
-    return Codebook(path, len(entries), slots, values)
-
-
-def find_shards(folder: Path) -> list[Path]:
-    """Every ``*.parquet`` below ``folder``, sorted by relative path."""
-    shards = sorted(folder.rglob("*.parquet"), key=lambda p: p.relative_to(folder).as_posix())
-    if not shards:
-        raise InputError(f"{folder}: no Parquet shards (*.parquet) in the release folder")
-    return shards
-
-
-def decode_batch(
-    batch: pa.RecordBatch, codebook: Codebook, where: str, first_row: int
+def _apply_policy(
+    records: pd.DataFrame,
+    sources: frozenset[str] | None,
+    missing: str,
+    where: str,
+    counts: Counter[str],
 ) -> pd.DataFrame:
-    """Decode one record batch into persona_id + field columns (missing as None)."""
-    rows = batch.num_rows
-    ids = batch.column(_id_column(batch.schema.names)).to_pylist()
-    empty = [k for k, i in enumerate(ids) if i is None or i == ""]
-    if empty:
-        raise InputError(f"{where}: row {first_row + empty[0]}: persona id is empty")
-    attrs = _BinaryColumn(batch.column("attributes"), where, "attributes")
-    short = attrs.valid & (attrs.lengths < (codebook.n_slots + 1) // 2)
-    if short.any():
-        k = int(np.flatnonzero(short)[0])
+    """Named sources only, no minors, then the missing policy; counts what each step drops."""
+    if sources is not None:
+        ours = records["source"].isin(sources).to_numpy()
+        counts["other_source"] += int((~ours).sum())
+        records = records[ours]
+    minor = records["_minor"].to_numpy(bool)
+    counts["minor"] += int(minor.sum())
+    records = records[~minor]
+    records = records.reset_index(drop=True)
+    records, dropped, filled = apply_missing(
+        records, missing, where, row_numbers=records["_row"].to_numpy()
+    )
+    counts["dropped"] += dropped
+    counts["filled"] += filled
+    return records
+
+
+def _check_sources_seen(wanted: frozenset[str] | None, scanned: Counter[str], folder: Path) -> None:
+    absent = sorted((wanted or frozenset()) - set(scanned))
+    if absent:
         raise InputError(
-            f"{where}: row {first_row + k}: 'attributes' has {attrs.lengths[k]} byte(s); "
-            f"the codebook's {codebook.n_slots} fields need {(codebook.n_slots + 1) // 2}"
+            f"{folder}: no record of source(s) {', '.join(absent)}",
+            hint=f"sources in this release: {', '.join(sorted(scanned)) or 'none'}",
         )
-    bitmap = None
-    if "null_bitmap" in batch.schema.names:
-        bitmap = _BinaryColumn(batch.column("null_bitmap"), where, "null_bitmap")
-    columns: dict[str, object] = {"persona_id": np.array([str(i) for i in ids], dtype=object)}
-    for field in PERSONA_FIELDS:
-        if field not in codebook.slots:
-            columns[field] = np.full(rows, None, dtype=object)
-            continue
-        slot = codebook.slots[field]
-        code = attrs.byte_at(slot // 2)
-        code = (code >> 4) if slot % 2 else (code & 0x0F)
-        absent = ~attrs.valid
-        if bitmap is not None:
-            absent |= ((bitmap.byte_at(slot // 8) >> (slot % 8)) & 1) == 1
-        lookup = np.asarray(codebook.values[field], dtype=object)
-        bad = ~absent & (code >= len(lookup))
-        if bad.any():
-            k = int(np.flatnonzero(bad)[0])
-            raise InputError(
-                f"{where}: row {first_row + k}: field {field!r} has code {int(code[k])}; "
-                f"the codebook lists {len(lookup)} value(s)"
-            )
-        values = lookup[np.where(absent, 0, code)]
-        values[absent] = None
-        columns[field] = values
-    if "attribute_overrides" in batch.schema.names:
-        _apply_overrides(columns, batch.column("attribute_overrides"), where, first_row)
-    return pd.DataFrame(columns)
 
 
-class _BinaryColumn:
-    """Offsets and bytes of a binary Arrow column, for vectorised byte lookups."""
-
-    def __init__(self, column: pa.Array, where: str, name: str) -> None:
-        kinds = (pa.types.is_binary, pa.types.is_large_binary, pa.types.is_fixed_size_binary)
-        if not any(is_kind(column.type) for is_kind in kinds):
-            raise InputError(f"{where}: column {name!r} should be binary, got {column.type}")
-        column = column.cast(pa.large_binary())
-        _, offsets, data = column.buffers()
-        start = column.offset
-        offsets = np.frombuffer(offsets, dtype=np.int64)[start : start + len(column) + 1]
-        self.starts = offsets[:-1]
-        self.lengths = np.diff(offsets)
-        self.data = np.frombuffer(data, dtype=np.uint8) if data is not None else np.empty(0)
-        self.valid = ~np.asarray(column.is_null().to_numpy(zero_copy_only=False), dtype=bool)
-
-    def byte_at(self, index: int) -> np.ndarray:
-        """Byte ``index`` of every value as int; 0 where the value is null or too short."""
-        present = self.valid & (self.lengths > index)
-        if not present.any():
-            return np.zeros(len(self.starts), dtype=np.int64)
-        positions = np.where(present, self.starts + index, 0)
-        return np.where(present, self.data[positions], 0).astype(np.int64)
-
-
-def _apply_overrides(columns: dict, overrides: pa.Array, where: str, first_row: int) -> None:
-    for k, raw in enumerate(overrides.to_pylist()):
-        if raw is None:
-            continue
-        mapping = _override_mapping(raw, where, first_row + k)
-        for field, value in mapping.items():
-            if field not in columns or field == "persona_id":
-                continue
-            if value is not None and value not in vocabulary(field):
-                raise InputError(
-                    f"{where}: row {first_row + k}: override of field {field!r} has unknown "
-                    f"value {value!r}",
-                    hint=f"allowed: {', '.join(repr(v) for v in vocabulary(field))}",
-                )
-            columns[field][k] = value
-
-
-def _override_mapping(raw: object, where: str, row: int) -> dict:
-    if isinstance(raw, str):
-        try:
-            raw = json.loads(raw) if raw.strip() else {}
-        except json.JSONDecodeError as exc:
-            raise InputError(f"{where}: row {row}: 'attribute_overrides' is not JSON") from exc
-    if isinstance(raw, list):  # a Parquet map reads as [(key, value), ...]
-        raw = dict(raw)
-    if not isinstance(raw, dict):
-        raise InputError(f"{where}: row {row}: 'attribute_overrides' should map field → value")
-    return raw
+def _checksum_note(verify: bool, checksums: dict[str, str] | None) -> str:
+    if not verify:
+        return "not verified (turned off)"
+    return "no manifest.json" if checksums is None else "verified against manifest.json"
 
 
 def _keep_smallest(
@@ -272,7 +181,7 @@ def _keep_smallest(
     if dup.any():
         first = both.loc[dup, "persona_id"].iloc[0]
         copies = both[both["persona_id"] == first]
-        where = [f"{s} row {r}" for s, r in zip(copies["source"], copies["_row"], strict=True)]
+        where = [f"{s} row {r}" for s, r in zip(copies["_where"], copies["_row"], strict=True)]
         raise InputError(f"duplicate persona id {first!r} in {' and '.join(where)}")
     if n is not None and len(both) > n:
         both = both.sort_values(["_key", "persona_id"], kind="stable").iloc[:n]
@@ -283,64 +192,12 @@ def _iter_batches(shard: Path, batch_size: int) -> Iterator[pa.RecordBatch]:
     try:
         parquet = pq.ParquetFile(shard)
         names = parquet.schema_arrow.names
-        id_col = _id_column(names)
-        if id_col is None or "attributes" not in names:
-            absent = [c for c in ("persona_id", "attributes") if c not in names]
+        absent = [c for c in ROW_COLUMNS if c not in names]
+        if absent:
             raise InputError(
                 f"{shard}: shard lacks column(s) {', '.join(absent)}; has {', '.join(names)}"
             )
-        wanted = [id_col, "attributes"] + [
-            c for c in ("null_bitmap", "attribute_overrides") if c in names
-        ]
+        wanted = [*ROW_COLUMNS, *(c for c in OPTIONAL_COLUMNS if c in names)]
         yield from parquet.iter_batches(batch_size=batch_size, columns=wanted)
     except (pa.ArrowException, OSError) as exc:
         raise InputError(f"{shard}: unreadable Parquet shard: {exc}") from exc
-
-
-def _id_column(names: list[str]) -> str | None:
-    return next((c for c in ID_COLUMNS if c in names), None)
-
-
-def _find_codebook(folder: Path) -> Path:
-    if (folder / CODEBOOK_NAME).is_file():
-        return folder / CODEBOOK_NAME
-    found = sorted(folder.rglob("*codebook*.json"))
-    if len(found) != 1:
-        listed = ", ".join(str(p.relative_to(folder)) for p in found) or "none"
-        raise InputError(
-            f"{folder}: expected one codebook JSON ({CODEBOOK_NAME} or *codebook*.json), "
-            f"found {listed}"
-        )
-    return found[0]
-
-
-def _entry_id(entry: object, path: Path, index: int) -> str:
-    if isinstance(entry, str):
-        return entry
-    if isinstance(entry, dict):
-        for key in _ID_KEYS:
-            if isinstance(entry.get(key), str):
-                return entry[key]
-    raise InputError(f"{path}: codebook entry {index} has no field id ({', '.join(_ID_KEYS)})")
-
-
-def _entry_values(entry: object, field: str, path: Path) -> tuple[str, ...]:
-    raw = next((entry[k] for k in _VALUE_KEYS if isinstance(entry, dict) and k in entry), None)
-    if isinstance(raw, dict):  # code → value
-        try:
-            raw = [raw[c] for c in sorted(raw, key=int)]
-        except ValueError as exc:
-            raise InputError(f"{path}: field {field!r}: value codes must be integers") from exc
-    if not isinstance(raw, list) or not raw or len(raw) > 16:
-        raise InputError(f"{path}: field {field!r} needs a list of 1–16 values for 4-bit codes")
-    ours = {v.casefold(): v for v in vocabulary(field)}
-    mapped = []
-    for value in raw:
-        text = value if isinstance(value, str) else repr(value)
-        if text not in vocabulary(field) and text.strip().casefold() not in ours:
-            raise InputError(
-                f"{path}: field {field!r}: codebook value {value!r} is not in our vocabulary",
-                hint=f"allowed: {', '.join(repr(v) for v in vocabulary(field))}",
-            )
-        mapped.append(text if text in vocabulary(field) else ours[text.strip().casefold()])
-    return tuple(mapped)
