@@ -64,7 +64,7 @@ def folder(path: Path) -> Path:
     return path
 
 
-from . import evaluate, population, simulation, study  # noqa: E402, F401  (register the commands)
+from . import data, evaluate, population, simulation, study  # noqa: E402, F401  (register the commands)
 
 INTERRUPTED = "[yellow]interrupted[/]: finished work is kept; run the same command to resume"
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from ..personas.fields import PERSONA_FIELDS, field_catalog, is_demographic
+from ..personas.variants import apply_variant
 from .probes import PROBES
 from .schema import BLOCK_QUESTIONS, LEVELS
 
@@ -45,3 +46,12 @@ def build_prompt(persona: Mapping[str, object]) -> str:
         'Reply with JSON: {"actions": {"P1": ..., "P8": ...}, "block": {"clearance": ..., '
         '"urgency": ...}}.'
     )
+
+
+def respondent_messages(persona: Mapping[str, object], variant: str) -> tuple[str, str]:
+    """(system, user) messages an LLM respondent is sent first for ``persona`` under ``variant``.
+
+    Re-asks after an invalid answer append the model's reply and a correction to
+    this conversation; they are not part of it.
+    """
+    return SYSTEM_PROMPT, build_prompt(apply_variant(persona, variant))

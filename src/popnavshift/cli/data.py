@@ -1,0 +1,80 @@
+"""Commands that explain a study folder: show-prompt (what a respondent was asked)."""
+
+from __future__ import annotations
+
+import difflib
+from pathlib import Path
+from typing import Annotated
+
+import pandas as pd
+import typer
+from rich.console import Console
+from rich.markup import escape
+
+from ..errors import InputError
+from . import app
+
+StudyOpt = Annotated[Path, typer.Option("--study", "-s", help="Study folder.")]
+#: stdout, not the stderr console of progress and messages: the text is the output
+out = Console(soft_wrap=True, highlight=False)
+
+
+@app.command("show-prompt")
+def show_prompt(
+    persona_id: Annotated[str, typer.Argument(help="A persona_id of the study.")],
+    study: StudyOpt = Path("study"),
+    variant: Annotated[
+        str | None,
+        typer.Option(help="baseline or deadline; default: every variant the persona was asked."),
+    ] = None,
+) -> None:
+    """Print the exact system and user messages a respondent got for one persona.
+
+    Example: popnavshift show-prompt syn-042 --study study
+
+    The text is rebuilt from personas.parquet with the respondent's own prompt
+    builder. The rule respondent reads the fields instead of this text; re-asks
+    after an invalid answer (model reply + correction) are not shown.
+    """
+    from ..pipeline import read_table
+    from ..responses.prompt import respondent_messages
+
+    personas = read_table(study / "personas.parquet", "personas")
+    record = _persona(personas, persona_id, study / "personas.parquet")
+    asked = _asked(study, persona_id)
+    variants = [variant] if variant else (sorted(asked) or ["baseline"])
+    for v in variants:
+        system, user = respondent_messages(record, v)
+        who = asked.get(v, "not asked in this study")
+        out.print(f"[bold]persona {escape(persona_id)} · variant {escape(v)}[/] · {escape(who)}")
+        out.print("[dim]── system ──[/]")
+        out.print(system, markup=False)
+        out.print("[dim]── user ──[/]")
+        out.print(user, markup=False)
+
+
+def _persona(personas: pd.DataFrame, persona_id: str, where: Path) -> dict:
+    match = personas[personas["persona_id"].astype(str) == persona_id]
+    if match.empty:
+        close = difflib.get_close_matches(persona_id, personas["persona_id"].astype(str), n=3)
+        raise InputError(
+            f"{where}: no persona {persona_id!r}",
+            hint=f"did you mean {', '.join(map(repr, close))}?" if close else None,
+        )
+    return match.iloc[0].to_dict()
+
+
+def _asked(study: Path, persona_id: str) -> dict[str, str]:
+    """Variant → "respondent (model)" (or "invalid answer") per variant asked of the persona."""
+    asked: dict[str, str] = {}
+    path = study / "responses.parquet"
+    if path.exists():
+        rows = pd.read_parquet(path, columns=["persona_id", "variant", "respondent", "model"])
+        for r in rows[rows["persona_id"] == persona_id].itertuples():
+            asked[str(r.variant)] = f"respondent {r.respondent} ({r.model})"
+    invalid = study / "responses_invalid.parquet"
+    if invalid.exists():
+        rows = pd.read_parquet(invalid, columns=["persona_id", "variant", "error"])
+        for r in rows[rows["persona_id"] == persona_id].itertuples():
+            asked[str(r.variant)] = f"invalid answer: {r.error}"
+    return asked
