@@ -8,6 +8,9 @@ import sys
 import pandas as pd
 import pytest
 
+from popnavshift.dictionary import STUDY_TABLES
+from popnavshift.tables import SPECS, check_table
+
 
 def cli(*args, cwd=None):
     return subprocess.run(
@@ -41,6 +44,12 @@ def test_quick_study_end_to_end(tmp_path):
     assert "matched_deadline" in proc.stderr  # sizes are printed
     runs = pd.read_parquet(out / "runs.parquet")
     assert len(runs) == 160 and (out / "manifest.json").exists()
+    for stage in STUDY_TABLES:  # every table the folder holds is the declared one
+        table = check_table(pd.read_parquet(out / f"{stage}.parquet"), stage)
+        assert set(table.columns) == set(SPECS[stage].names), stage
+    described = cli("describe", str(out))
+    assert described.returncode == 0 and "not declared" not in described.stdout
+    assert "pedestrians.parquet · " in described.stdout
     again = cli("run", "quick", "--out", str(out), "--no-report")
     assert again.returncode == 0 and "nothing to do" in again.stderr
 

@@ -26,6 +26,16 @@ PARAM_RANGES: dict[str, tuple[float, float]] = {
     "L": (1.0, 4.0),  # detour threshold [m]
     "g": (0.0, 1.0),  # gap acceptance [-]
 }
+#: unit and meaning of each motion parameter (docs/method.md, response layer)
+PARAM_DOCS: dict[str, tuple[str, str]] = {
+    "v": ("m/s", "preferred walking speed"),
+    "d": ("m", "clearance wanted from the robot, added to both radii in the conflict test"),
+    "a": ("1", "avoidance strength: a detour's lateral offset is a × effective clearance"),
+    "y": ("1", "yielding propensity: fraction of the preferred speed given up in a conflict"),
+    "tau": ("s", "reaction delay after the robot comes within 6 m"),
+    "L": ("m", "robot distance at which yielding is complete and detours start"),
+    "g": ("1", "gap acceptance: shrinks the effective clearance, d (1 − 0.35 g)"),
+}
 
 #: Ordered five-level response block (SPEC §3), encoded 0, .25, .5, .75, 1.
 BLOCK_ITEMS: tuple[str, ...] = (
@@ -43,12 +53,23 @@ Q_COLUMNS: tuple[str, ...] = tuple(f"q_{k}" for k in BLOCK_ITEMS)
 ACTIONS: tuple[str, ...] = ("continue", "slow", "stop", "yield", "pass", "detour")
 VARIANTS: tuple[str, ...] = ("baseline", "deadline")
 
+#: dtype of each column kind in a Parquet file read with pandas
+DTYPES = {"str": "string", "float": "float64", "int": "int64", "bool": "bool"}
+
 
 @dataclass(frozen=True)
 class Column:
+    """One declared column: its dtype and, for the data dictionary (docs/data.md),
+    its unit ("1" = dimensionless, "" = not a quantity), meaning, what a missing value
+    means (required when nullable) and the ``table.column`` it refers to."""
+
     name: str
     kind: str  # "str", "float", "int", "bool"
     nullable: bool = False
+    unit: str = ""
+    doc: str = ""
+    missing: str = ""
+    refers: str = ""
 
 
 @dataclass(frozen=True)
@@ -56,76 +77,152 @@ class TableSpec:
     stage: str
     columns: tuple[Column, ...]
     key: tuple[str, ...]
+    file: str = ""  # file name in a study folder
+    doc: str = ""  # what one row is
 
     @property
     def names(self) -> list[str]:
         return [c.name for c in self.columns]
 
 
-def _cols(kind: str, names, nullable: bool = False) -> tuple[Column, ...]:
-    return tuple(Column(n, kind, nullable) for n in names)
+def _col(name: str, kind: str, doc: str, unit: str = "", **kw: object) -> Column:
+    return Column(name, kind, unit=unit, doc=doc, **kw)  # type: ignore[arg-type]
 
 
 SPECS: dict[str, TableSpec] = {}
 
 
-def declare(stage: str, columns: tuple[Column, ...], key: tuple[str, ...]) -> TableSpec:
-    spec = TableSpec(stage, columns, key)
+def declare(
+    stage: str, columns: tuple[Column, ...], key: tuple[str, ...], file: str = "", doc: str = ""
+) -> TableSpec:
+    spec = TableSpec(stage, columns, key, file or f"{stage}.parquet", doc)
     SPECS[stage] = spec
     return spec
 
 
+PERSONA_REF = "personas.persona_id"
+MAPPING_DOC = (
+    "profile set: a mapping A–D, or a robustness set of Mapping A (A~reassign, A~shuffle, "
+    "A~block-<block>, A~<respondent>-2)"
+)
+
+
 def _persona_columns() -> tuple[Column, ...]:
-    from .personas.fields import OPTIONAL_FIELDS, REQUIRED_FIELDS
+    from .personas.fields import OPTIONAL_FIELDS, REQUIRED_FIELDS, field_catalog
+
+    def field(name: str, nullable: bool) -> Column:
+        spec = field_catalog()[name]
+        values = ", ".join(spec["values"])
+        missing = "the source record lacks the field" if nullable else ""
+        return Column(name, "str", nullable, doc=f"{spec['label']}: one of {values}",
+                      missing=missing)
 
     return (
-        Column("persona_id", "str"),
-        Column("source", "str"),
-        *_cols("str", REQUIRED_FIELDS),
-        *_cols("str", OPTIONAL_FIELDS, nullable=True),
+        _col("persona_id", "str", "persona id: syn-NNNNNN (synthetic), the table's id, or "
+             "source:source_record_id (MatrAIx release)"),
+        _col("source", "str", "where the record comes from: synthetic, the table's file "
+             "name, or the release record's source (gss, wiki, …)"),
+        *(field(f, False) for f in REQUIRED_FIELDS),
+        *(field(f, True) for f in OPTIONAL_FIELDS),
     )
 
 
-PERSONAS = declare("personas", _persona_columns(), ("persona_id",))
+PERSONAS = declare("personas", _persona_columns(), ("persona_id",),
+                   doc="one persona record sampled from the persona source")
 
+_VARIANT = _col("variant", "str", "persona variant asked: baseline, or deadline (time "
+                "pressure set to Deadline, the matched intervention)")
 RESPONSES = declare(
     "responses",
     (
-        Column("persona_id", "str"),
-        Column("variant", "str"),
-        Column("respondent", "str"),
-        Column("model", "str"),
-        Column("probe_set", "str"),
-        *_cols("str", ACTION_COLUMNS),
-        *_cols("float", Q_COLUMNS),
+        _col("persona_id", "str", "the persona answering", refers=PERSONA_REF),
+        _VARIANT,
+        _col("respondent", "str", "respondent name (rule, openai, gemini, a plug-in)"),
+        _col("model", "str", "the respondent's model and settings"),
+        _col("probe_set", "str", "hash of the probe texts and attributes asked"),
+        *(_col(c, "str", f"action chosen in probe P{c[7:]}: one of {', '.join(ACTIONS)}")
+          for c in ACTION_COLUMNS),
+        *(_col(c, "float", f"self-rating '{c[2:]}': very_low … very_high as 0, .25, .5, .75, 1",
+               "1") for c in Q_COLUMNS),
     ),
     ("persona_id", "variant"),
+    doc="one valid answer of a respondent to the 8 probes and the 7-item block",
 )
+
+RESPONSES_INVALID = declare(
+    "responses_invalid",
+    (
+        _col("persona_id", "str", "the persona asked", refers=PERSONA_REF),
+        _VARIANT,
+        _col("error", "str", "why the answer stayed invalid after the re-asks"),
+        _col("raw", "str", "the respondent's last raw reply", nullable=True,
+             missing="no reply was received (transport failure)"),
+    ),
+    ("persona_id", "variant"),
+    doc="one record whose answer stayed invalid (listed, never dropped silently)",
+)
+
+
+def _param_columns(prefix: str = "", nullable: bool = False, **kw: str) -> tuple[Column, ...]:
+    return tuple(
+        Column(prefix + p, "float", nullable, unit=unit, doc=doc, **kw)
+        for p, (unit, doc) in PARAM_DOCS.items()
+    )
+
+
+def _z_columns() -> tuple[Column, ...]:
+    return tuple(
+        Column(f"z_{p}", "float", unit="1",
+               doc=f"normalised score of {p} in [0, 1]: {p} = low + z (high − low), "
+               f"range {PARAM_RANGES[p][0]:g}–{PARAM_RANGES[p][1]:g} {PARAM_DOCS[p][0]}")
+        for p in PARAMS
+    )
+
 
 PROFILES = declare(
     "profiles",
     (
-        Column("persona_id", "str"),
-        Column("variant", "str"),
-        Column("mapping", "str"),
-        *_cols("float", PARAMS),
-        *_cols("float", [f"z_{p}" for p in PARAMS]),
-        Column("caution", "float"),
+        _col("persona_id", "str", "the persona profiled", refers=PERSONA_REF),
+        _VARIANT,
+        _col("mapping", "str", MAPPING_DOC),
+        *_param_columns(),
+        *_z_columns(),
+        _col("caution", "float", "caution index from the responses, in [0, 1]", "1"),
     ),
     ("persona_id", "variant", "mapping"),
+    doc="one persona's motion parameters θ under one profile set",
 )
 
 POPULATIONS = declare(
     "populations",
     (
-        Column("population", "str"),
-        Column("member", "int"),
-        Column("persona_id", "str"),
-        Column("variant", "str"),
-        Column("mapping", "str"),
-        *_cols("float", PARAMS),
+        _col("population", "str", "population condition (homogeneous, mixed, "
+             "high_time_pressure, …, matched_base, matched_deadline, split halves, nulls)"),
+        _col("member", "int", "member index within the population, from 0"),
+        _col("persona_id", "str", "the member's persona; 'median' for the homogeneous "
+             "population's single median profile", refers=PERSONA_REF),
+        _VARIANT,
+        _col("mapping", "str", MAPPING_DOC),
+        *_param_columns(),
     ),
     ("population", "mapping", "member"),
+    doc="one member of a population condition with its motion parameters",
+)
+
+EPISODES = declare(
+    "episodes",
+    (
+        _col("id", "str", "episode id <scene>-w<width>-d<density>-s<robot_speed>-v<variant>"),
+        _col("scene", "str", "sidewalk, head_on, crossing, bottleneck or obstruction"),
+        _col("width", "float", "walkable width", "m"),
+        _col("density", "float", "pedestrian density", "1/m²"),
+        _col("robot_speed", "float", "robot's maximum speed", "m/s"),
+        _col("variant", "int", "episode variant of the cell (1–3)"),
+        _col("n_peds", "int", "number of pedestrians"),
+        _col("seed", "int", "the episode's random seed (derived from the study seed)"),
+    ),
+    ("id",),
+    doc="one episode of the study seed's 104-cell grid",
 )
 
 RUN_KEY: tuple[str, ...] = ("episode", "population", "controller", "backend", "mapping")
@@ -133,47 +230,72 @@ NO_ROBOT = "none"
 """The ``controller`` value of a no-robot baseline run."""
 """A run's identity: ``controller == "none"`` is the no-robot baseline."""
 
+_NO_ROBOT_NAN = "no robot (controller none), or the controller raised (controller_error)"
+_RUN_COLUMNS = (
+    _col("part", "str", "the first study part that plans the run; a run several parts "
+         "share is stored once: select a part's runs with popnavshift.load(study, part)"),
+    _col("episode", "str", "episode id; …@s<k> = the same cell and variant drawn with seed "
+         "set k", refers="episodes.id"),
+    _col("population", "str", "population condition", refers="populations.population"),
+    _col("controller", "str", "robot controller id; none = no-robot baseline run"),
+    _col("backend", "str", "pedestrian dynamics: orca (Ped-ORCA) or hl (navground HL)"),
+    _col("mapping", "str", MAPPING_DOC, refers="populations.mapping"),
+)
+
 RUNS = declare(
     "runs",
     (
-        Column("part", "str"),
-        *_cols("str", RUN_KEY),
-        Column("scene", "str"),
-        *_cols("float", ("width", "density", "robot_speed")),
-        *_cols("int", ("variant", "n_peds")),
-        # success | pedestrian_collision | world_collision | timeout | controller_error | none
-        Column("outcome", "str"),
-        *_cols(
-            "float",
-            (
-                "robot_time",
-                "outcome_time",
-                "robot_path_length",
-                "robot_stop_time",
-                "robot_min_clearance",
-            ),
-            nullable=True,  # NaN for no-robot runs
-        ),
-        *_cols("int", ("ped_collisions", "world_collisions", "peds_arrived", "steps")),
-        Column("error", "str", nullable=True),  # what the controller raised (controller_error)
+        *_RUN_COLUMNS,
+        _col("scene", "str", "scene of the episode"),
+        _col("width", "float", "walkable width", "m"),
+        _col("density", "float", "pedestrian density", "1/m²"),
+        _col("robot_speed", "float", "robot's maximum speed", "m/s"),
+        _col("variant", "int", "episode variant of the cell (1–3)"),
+        _col("n_peds", "int", "number of pedestrians"),
+        _col("outcome", "str", "the robot's first event: success, pedestrian_collision, "
+             "world_collision, timeout, controller_error; none without a robot"),
+        _col("robot_time", "float", "success time, else the 45 s limit", "s", nullable=True,
+             missing="no robot (controller none)"),
+        _col("outcome_time", "float", "time of the outcome", "s", nullable=True,
+             missing=_NO_ROBOT_NAN),
+        _col("robot_path_length", "float", "robot path length until the outcome", "m",
+             nullable=True, missing=_NO_ROBOT_NAN),
+        _col("robot_stop_time", "float", "time the robot moved slower than 0.05 m/s before "
+             "the outcome", "s", nullable=True, missing=_NO_ROBOT_NAN),
+        _col("robot_min_clearance", "float", "smallest robot–pedestrian distance minus radii "
+             "before the outcome", "m", nullable=True, missing=_NO_ROBOT_NAN),
+        _col("ped_collisions", "int", "robot–pedestrian contact events over the run"),
+        _col("world_collisions", "int", "robot–wall/obstacle contact events over the run"),
+        _col("peds_arrived", "int", "pedestrians that reached their exit"),
+        _col("steps", "int", "simulation steps of 0.1 s"),
+        _col("error", "str", "what the controller raised", nullable=True,
+             missing="the controller did not raise (every outcome but controller_error)"),
     ),
     RUN_KEY,
+    doc="one simulated run: an episode × population × controller × backend × profile set",
 )
 
 PEDESTRIANS = declare(
     "pedestrians",
     (
-        Column("part", "str"),
-        *_cols("str", RUN_KEY),
-        Column("slot", "int"),
-        Column("persona_id", "str"),
-        Column("arrived", "bool"),
-        # NaN when the pedestrian never arrived (travel time, detour) or without a robot
-        *_cols("float", ("travel_time", "detour", "min_robot_clearance"), nullable=True),
-        *_cols("float", ("walk_distance", "stop_time")),
-        *_cols("float", PARAMS),
+        *_RUN_COLUMNS,
+        _col("slot", "int", "pedestrian index in the episode, from 0"),
+        _col("persona_id", "str", "the population member walking in this slot",
+             refers=PERSONA_REF),
+        _col("arrived", "bool", "reached its exit before the 45 s limit"),
+        _col("travel_time", "float", "time from t = 0 to crossing the exit line", "s",
+             nullable=True, missing="never arrived"),
+        _col("detour", "float", "walked minus the straight line from start to exit point",
+             "m", nullable=True, missing="never arrived"),
+        _col("min_robot_clearance", "float", "smallest distance to the robot minus both "
+             "radii", "m", nullable=True, missing="no robot in the run"),
+        _col("walk_distance", "float", "path length up to the exit (or the end of the run)",
+             "m"),
+        _col("stop_time", "float", "time slower than 0.05 m/s before leaving", "s"),
+        *_param_columns(),
     ),
     (*RUN_KEY, "slot"),
+    doc="one pedestrian of one run with its motion parameters and outcomes",
 )
 
 

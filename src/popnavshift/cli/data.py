@@ -78,3 +78,72 @@ def _asked(study: Path, persona_id: str) -> dict[str, str]:
         for r in rows[rows["persona_id"] == persona_id].itertuples():
             asked[str(r.variant)] = f"invalid answer: {r.error}"
     return asked
+
+
+@app.command()
+def describe(
+    study: Annotated[
+        Path | None, typer.Argument(help="Study folder; omitted: every table, as Markdown.")
+    ] = None,
+    table: Annotated[str | None, typer.Argument(help="One table, e.g. runs.")] = None,
+    markdown: Annotated[
+        bool, typer.Option("--markdown", help="Print Markdown (the text of docs/data.md).")
+    ] = False,
+) -> None:
+    """Print the data dictionary: every column's dtype, unit, key role, NaN meaning.
+
+    Example: popnavshift describe study runs
+
+    With a study folder, only the tables it holds, with their row counts, and
+    columns the folder has but the dictionary does not declare are flagged.
+    """
+    from ..dictionary import STUDY_TABLES, data_markdown, table_markdown
+    from ..errors import UnknownNameError
+    from ..tables import SPECS
+
+    names = list(STUDY_TABLES)
+    if table is not None:
+        name = table.removesuffix(".parquet")
+        if name not in STUDY_TABLES:
+            raise UnknownNameError("table", name, STUDY_TABLES)
+        names = [name]
+    if study is not None:
+        if not study.is_dir():
+            raise InputError(f"{study}: no such study folder")
+        names = [n for n in names if (study / SPECS[n].file).exists()]
+        if not names:
+            raise InputError(f"{study}: holds none of the table(s) {table or 'of a study'}")
+    if markdown:
+        text = data_markdown() if study is None and table is None else "\n".join(
+            table_markdown(SPECS[n]) for n in names
+        )
+        typer.echo(text, nl=False)
+        return
+    for name in names:
+        _print_table(SPECS[name], study)
+
+
+def _print_table(spec, study: Path | None) -> None:
+    from rich.table import Table
+    from rich.text import Text
+
+    from ..dictionary import role
+    from ..tables import DTYPES
+
+    title = spec.file
+    present: list[str] | None = None
+    if study is not None:
+        import pyarrow.parquet as pq
+
+        meta = pq.ParquetFile(study / spec.file)
+        present = meta.schema_arrow.names
+        title = f"{study / spec.file} · {meta.metadata.num_rows} rows"
+    grid = Table(title=Text(title), caption=Text(f"one row per {spec.doc[4:]}"))
+    for head in ("column", "dtype", "unit", "key", "refers to", "missing means", "meaning"):
+        grid.add_column(head, overflow="fold", ratio=3 if head == "meaning" else 1)
+    for c in spec.columns:
+        cells = (c.name, DTYPES[c.kind], c.unit, role(spec, c), c.refers, c.missing, c.doc)
+        grid.add_row(*(Text(x) for x in cells))
+    for extra in [n for n in present or [] if n not in spec.names]:
+        grid.add_row(Text(extra), *(Text("") for _ in range(5)), Text("not declared"))
+    out.print(grid)
