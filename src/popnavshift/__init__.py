@@ -5,3 +5,7 @@ personas → responses → profiles → populations → episodes → sim → (en
 """
 
 __version__ = "0.1.0"
+
+from .access import load  # noqa: E402  (popnavshift.load(study, part="main"))
+
+__all__ = ["__version__", "load"]

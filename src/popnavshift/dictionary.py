@@ -38,6 +38,41 @@ The study's provenance is in JSON files beside the tables: `personas.json` (sour
 sampling policy, counts per source), `responses.json` (respondent, calls, tokens),
 `manifest.json` (versions, seeds, the study configuration, timings) and `stages.json`
 (the inputs each stage was made from).
+
+## Reading the tables
+
+A run several study parts plan (the matched intervention inside the main grid, say)
+is simulated and stored once, under the first part that plans it: the `part` column.
+To get every run of a part, shared or not, load it by the part's plan:
+
+```python
+import popnavshift
+
+runs = popnavshift.load("study", part="main")  # every run of the main grid
+peds = popnavshift.load("study", part="matched", table="pedestrians")
+rows = popnavshift.load("study", part=None)  # every row, each under its first part
+```
+
+Nothing needs parsing out of an id: `seed_set` says which episode draw a run used
+(the `…@s<k>` episodes), `profile_set` how its profiles were made (the `A~…` profile
+sets), and `run_id` joins a run to its pedestrians. With DuckDB, straight from the
+files (`main` comes first in every shipped study, so its runs are exactly the rows
+stored under it):
+
+```sql
+-- success rate per controller and population in the main grid
+SELECT controller, population, avg((outcome = 'success')::INT) AS success_rate,
+       count(*) AS runs
+FROM 'study/runs.parquet'
+WHERE part = 'main' AND controller <> 'none'
+GROUP BY ALL ORDER BY ALL;
+
+-- mean travel time of the pedestrians who arrived, original profiles, study seed set
+SELECT r.controller, r.population, avg(p.travel_time) AS mean_travel_time_s
+FROM 'study/runs.parquet' r JOIN 'study/pedestrians.parquet' p USING (run_id)
+WHERE r.seed_set = 0 AND r.profile_set = 'original' AND p.arrived
+GROUP BY ALL ORDER BY ALL;
+```
 """
 
 

@@ -240,6 +240,12 @@ _RUN_COLUMNS = (
     _col("controller", "str", "robot controller id; none = no-robot baseline run"),
     _col("backend", "str", "pedestrian dynamics: orca (Ped-ORCA) or hl (navground HL)"),
     _col("mapping", "str", MAPPING_DOC, refers="populations.mapping"),
+    _col("run_id", "str", "the run's id, a hash of the five key columns: joins runs and "
+         "pedestrians"),
+    _col("seed_set", "int", "study seed the episode was drawn with: the study's own, or k "
+         "for an episode id …@s<k>"),
+    _col("profile_set", "str", "how the profile set was made: original (a mapping A–D of "
+         "the answers), reassign, shuffle, block-<block>, second_respondent"),
 )
 
 RUNS = declare(

@@ -34,6 +34,11 @@ class Run:
     def key(self) -> tuple[str, str, str, str, str]:
         return (self.episode, self.population, self.controller, self.backend, self.mapping)
 
+    @property
+    def id(self) -> str:
+        """The ``run_id`` column: 16 hex digits of the key's hash, the same in every study."""
+        return digest(list(self.key))[:16]
+
 
 @dataclass(frozen=True)
 class Batch:

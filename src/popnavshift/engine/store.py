@@ -22,7 +22,7 @@ import pyarrow.parquet as pq
 
 from ..io import write_atomic, write_json, write_parquet
 from ..tables import RUN_KEY as TABLE_RUN_KEY
-from ..tables import check_table
+from ..tables import RUNS, check_table
 from .plan import Batch, Run
 
 RUN_KEY = list(TABLE_RUN_KEY)
@@ -91,7 +91,8 @@ class RunStore:
         record = self._record()
         runs_path = self.folder / "runs.parquet"
         if (record is None or record.get("inputs") != inputs or not runs_path.exists()
-                or not (self.folder / "pedestrians.parquet").exists()):
+                or not (self.folder / "pedestrians.parquet").exists()
+                or set(RUNS.names) - set(pq.read_schema(runs_path).names)):  # older columns
             return set()
         made_with = record.get("code", {})
         have = pd.read_parquet(runs_path, columns=RUN_KEY)
@@ -137,6 +138,7 @@ class RunStore:
         peds = pd.concat(frames_p, ignore_index=True)
         if "error" not in runs.columns:  # shards written before the column existed
             runs["error"] = None
+        runs["error"] = runs["error"].astype("string")  # all-None would be Arrow's null type
         runs = runs.sort_values(RUN_KEY, kind="stable").reset_index(drop=True)
         peds = peds.sort_values([*RUN_KEY, "slot"], kind="stable").reset_index(drop=True)
         check_table(runs, "runs")

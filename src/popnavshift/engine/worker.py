@@ -49,7 +49,8 @@ def run_batch(
     batch: Batch, context: Context | None = None
 ) -> tuple[str, pd.DataFrame, pd.DataFrame, float]:
     """Simulate every run of ``batch``; returns (batch id, runs, pedestrians, seconds)."""
-    from ..episodes.specs import assign_slots, get_episode
+    from ..episodes.specs import assign_slots, get_episode, seed_set_of
+    from ..populations.perturb import profile_set_of
     from ..sim.run import ControllerError, failed_result, pedestrian_table, simulate
 
     ctx = context or _CONTEXT
@@ -75,6 +76,9 @@ def run_batch(
             "controller": run.controller,
             "backend": run.backend,
             "mapping": run.mapping,
+            "run_id": run.id,
+            "seed_set": seed_set_of(run.episode, ctx.episode_seed),
+            "profile_set": profile_set_of(run.mapping),
         }
         run_rows.append({**result.run, **keys, "error": error})
         ped_columns.append(result.ped_columns)

@@ -31,6 +31,24 @@ BLOCKS: dict[str, tuple[tuple[str, ...], bool]] = {
 }
 
 
+UNPERTURBED = "original"
+SECOND_RESPONDENT = "second_respondent"
+
+
+def profile_set_of(mapping: str) -> str:
+    """The ``profile_set`` column: how a profile set was made, from its label.
+
+    ``original`` (a mapping A–D of the respondent's answers), ``reassign``, ``shuffle``,
+    ``block-<name>``, or ``second_respondent`` (``A~<respondent>-2``).
+    """
+    base, sep, kind = mapping.partition("~")
+    if not sep:
+        return UNPERTURBED
+    if kind in ("reassign", "shuffle") or kind.startswith("block-"):
+        return kind
+    return SECOND_RESPONDENT if kind.endswith("-2") else kind
+
+
 def label(kind: str, detail: str | None = None, base: str = "A") -> str:
     return f"{base}~{kind}" if detail is None else f"{base}~{kind}-{detail}"
 

@@ -75,7 +75,8 @@ def pedestrian_table(columns: list[dict], keys: dict[str, list] | None = None) -
         else:
             table[name] = np.concatenate(parts) if parts else np.empty(0)
     for name, values in (keys or {}).items():
-        table[name] = np.repeat(np.array(values, dtype=object), sizes)
+        array = np.asarray(values)  # ints stay int64 (seed_set); text stays Python str
+        table[name] = np.repeat(array.astype(object) if array.dtype.kind in "US" else array, sizes)
     return pd.DataFrame(table)
 
 
