@@ -58,7 +58,9 @@ def synthetic_study(populations: dict[str, Effect], *, n_cells: int = 12, varian
                                      "robot_speed": cell[3], "variant": v, "population": pop,
                                      "controller": ctrl, "backend": "orca", "mapping": "A",
                                      "outcome": "success" if robot else "none",
-                                     "robot_time": rt if robot else np.nan})
+                                     "robot_time": rt if robot else np.nan,
+                                     "robot_min_clearance": 0.8 if robot else np.nan,
+                                     "error": None})
                         for s in range(n_peds):
                             t = base_t[s] + delay[s]
                             peds.append({"part": "main", "episode": ep, "population": pop,

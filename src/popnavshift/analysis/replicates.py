@@ -52,8 +52,8 @@ def _ordered_sets(runs: pd.DataFrame, study_seed: int) -> list[int]:
 def replicate_curve(runs: pd.DataFrame, pedestrians: pd.DataFrame,
                     designs: dict[str, tuple[list, list]], observed: Sequence[str], *,
                     study_seed: int, seed: int = 0, n_boot: int = N_BOOT // 2,
-                    level: float = LEVEL, metrics: Sequence[str] = ("mean_delay", "cvar90",
-                                                                    "robot_time")
+                    level: float = LEVEL,
+                    metrics: Sequence[str] = ("mean_delay", "worst_decile", "cvar90", "robot_time")
                     ) -> pd.DataFrame:
     """Headline rows (:func:`.evidence.test_comparisons`) on the first k seed sets, for
     k = 1 … S; columns of the headline plus ``seed_sets`` and ``variants_per_cell``.

@@ -8,7 +8,14 @@ the point estimate and every resample) and ``crossover_tests`` (Gail–Simon tes
 of a qualitative interaction across populations, with Holm or BH control).
 
 * **Significant ordering**: the bootstrap interval of D at ``level`` (default 90 %)
-  excludes 0; otherwise the ordering counts as tied.
+  excludes 0; otherwise the ordering counts as tied. With n episodes in the cell,
+  the interval is the wider of (a) Hesterberg's *expanded percentile* interval
+  (tails at Φ(−√(n/(n−1)) · t_{n−1, 1−α/2}) instead of α/2) and (b) the t-interval
+  D ± t_{n−1, 1−α/2} · √(n/(n−1)) · SE_boot. Both undo the plug-in variance's
+  (n−1)/n bias; (b) is what keeps small cells honest — with the paper's 3 variants
+  per cell a percentile interval spans only the 3 episodes and calls an ordering
+  significant whenever they agree in sign (25 % of the time under no difference);
+  (a) keeps the skew of tail metrics where n is large. One episode: no interval.
 * **Significant reversal**: two significant orderings of opposite sign under two
   populations. The **significant rate** is significant reversals / comparisons
   significant under both populations. The paper's **raw rate** (tie tolerance,
@@ -59,6 +66,7 @@ class Orderings:
     boot: np.ndarray
     level: float
     tolerance: float
+    n_episodes: np.ndarray  # (U,) episodes in each unit's cell (the bootstrap's sample size)
 
     def index(self, population: str) -> int:
         return self.populations.index(population)
@@ -124,19 +132,35 @@ def orderings(cells: pd.DataFrame, design: Design, boot: dict[str, np.ndarray], 
     n_b = resampled.shape[0]
     d_boot = np.empty((n_b, *diff.shape), dtype=np.float32)
     low, high, se = (np.full(diff.shape, np.nan) for _ in range(3))
-    alpha = 1.0 - level
+    per_cell = design.episodes.groupby("cell").size()
+    n_eps = units["cell"].map(per_cell).fillna(0).to_numpy(np.int64)
     for p in range(len(pops)):  # one population at a time bounds the temporaries
         d = resampled[:, i1[p]] - resampled[:, i2[p]]
         d_boot[:, p] = d
-        low[p], high[p] = nan_quantiles(d, (alpha / 2, 1 - alpha / 2))
         with np.errstate(all="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN slices → NaN
             se[p] = np.nanstd(d, axis=0, dtype=np.float64)
+        for n in np.unique(n_eps):
+            u = n_eps == n
+            if n < 2:
+                continue  # one episode: no interval, never significant
+            tail = expanded_tail(level, int(n))
+            lo, hi = nan_quantiles(d[:, u], (tail, 1 - tail))
+            half = stats.t.ppf(0.5 + level / 2, n - 1) * np.sqrt(n / (n - 1)) * se[p][u]
+            low[p][u] = np.fmin(lo, diff[p][u] - half)
+            high[p][u] = np.fmax(hi, diff[p][u] + half)
     sig = np.where(low > 0, 1.0, np.where(high < 0, -1.0, 0.0))
     sig[np.isnan(diff) | np.isnan(low)] = np.nan
     tol = TOLERANCES[metric] if tolerance is None else tolerance
     return Orderings(metric, pops, units, [(ctrl[a], ctrl[b]) for a, b in pairs], diff,
-                     low, high, se, sig, d_boot, level, tol)
+                     low, high, se, sig, d_boot, level, tol, n_eps)
+
+
+def expanded_tail(level: float, n: int) -> float:
+    """The lower tail probability of Hesterberg's expanded percentile interval at ``level``
+    for a sample of ``n`` ≥ 2 (Hesterberg 2015, §5): Φ(−√(n/(n−1)) · t_{n−1, (1+level)/2})."""
+    t = stats.t.ppf(0.5 + level / 2, n - 1)
+    return float(stats.norm.cdf(-np.sqrt(n / (n - 1)) * t))
 
 
 def nan_quantiles(x: np.ndarray, qs: Sequence[float]) -> list[np.ndarray]:
@@ -235,21 +259,31 @@ def pair_counts(o: Orderings, pairs: Sequence[tuple[str, str]]) -> PairCounts:
 # --- crossover (qualitative interaction) tests ---------------------------------------------
 
 
-def gail_simon(diff: np.ndarray, se: np.ndarray) -> np.ndarray:
+def gail_simon(diff: np.ndarray, se: np.ndarray, df: np.ndarray | None = None) -> np.ndarray:
     """Gail–Simon (1985) p-value of a qualitative interaction, per row.
 
     ``diff`` and ``se`` are (n, q): a treatment difference and its standard error
     in q subgroups (here: one controller difference under q populations); NaN
-    subgroups are dropped. Q⁻ = Σ (d/s)² [d > 0], Q⁺ = Σ (d/s)² [d < 0],
+    subgroups are dropped. With z = d/s, Q⁻ = Σ z² [d > 0], Q⁺ = Σ z² [d < 0],
     Q = min(Q⁻, Q⁺), and p = Σ_{h=1}^{q−1} P(χ²_h > Q) · Binom(h; q − 1, ½), the
     least-favourable null distribution (no crossover). NaN with fewer than 2
     subgroups. A zero SE with a non-zero difference is an infinitely precise sign.
+    ``df`` (n,), when given, are the degrees of freedom of each row's d/s: each is
+    mapped to the normal quantile of its t probability, so small samples are not
+    read as normal.
     """
     d, s = np.asarray(diff, float), np.asarray(se, float)
     ok = np.isfinite(d) & np.isfinite(s)
     with np.errstate(divide="ignore", invalid="ignore"):
-        z2 = np.where(ok, np.where(d == 0, 0.0, (d / s) ** 2), 0.0)
-    z2 = np.nan_to_num(z2, nan=0.0, posinf=np.inf)
+        z = np.where(ok, np.where(d == 0, 0.0, d / s), 0.0)
+        if df is not None:
+            dfs = np.broadcast_to(np.asarray(df, float)[:, None], z.shape)
+            good = np.isfinite(z) & (dfs >= 1)
+            z = np.where(good, stats.norm.ppf(stats.t.cdf(np.where(good, z, 0.0),
+                                                           np.maximum(dfs, 1))), z)
+            ok &= dfs >= 1
+            z = np.where(ok, z, 0.0)
+    z2 = np.nan_to_num(z**2, nan=0.0, posinf=np.inf)
     q_minus = np.where(ok & (d > 0), z2, 0.0).sum(axis=1)
     q_plus = np.where(ok & (d < 0), z2, 0.0).sum(axis=1)
     q = np.minimum(q_minus, q_plus)
@@ -291,7 +325,9 @@ ADJUST = {"holm": holm, "bh": bh}
 def crossover_tests(o: Orderings, populations: Sequence[str], *, method: str = "bh",
                     alpha: float = ALPHA) -> pd.DataFrame:
     """Gail–Simon test per (unit, controller pair) across ``populations``, adjusted over
-    the table's comparisons with ``method`` (``"holm"`` or ``"bh"``).
+    the table's comparisons with ``method`` (``"holm"`` or ``"bh"``). Each subgroup's
+    bootstrap SE is scaled by √(n/(n−1)) and its z read through a t with n − 1
+    degrees of freedom (n = episodes in the cell).
 
     Returns one row per (unit, controller pair): UNIT columns, ``ctrl_1, ctrl_2``,
     ``n_populations``, ``p``, ``p_adj`` and ``crossover`` (p_adj ≤ ``alpha``).
@@ -299,8 +335,11 @@ def crossover_tests(o: Orderings, populations: Sequence[str], *, method: str = "
     idx = [o.index(p) for p in populations]
     d = np.moveaxis(o.diff[idx], 0, -1).reshape(-1, len(idx))
     s = np.moveaxis(o.se[idx], 0, -1).reshape(-1, len(idx))
-    p = gail_simon(d, s)
     n_u, n_c = o.diff.shape[1:]
+    n = np.repeat(o.n_episodes, n_c).astype(float)  # episodes behind each row's estimates
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = s * np.sqrt(n / (n - 1))[:, None]  # undo the plug-in variance's bias
+    p = gail_simon(d, s, df=n - 1)
     out = o.units.iloc[np.repeat(np.arange(n_u), n_c)].reset_index(drop=True)
     out["ctrl_1"] = [o.pairs[i][0] for i in np.tile(np.arange(n_c), n_u)]
     out["ctrl_2"] = [o.pairs[i][1] for i in np.tile(np.arange(n_c), n_u)]

@@ -12,6 +12,7 @@ than robot time") are checked against their nulls in :mod:`.nulls`
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from functools import partial
 
@@ -138,8 +139,10 @@ def surviving_findings(runs: pd.DataFrame, pedestrians: pd.DataFrame, *,
     a = (1 - level) / 2
     rows = []
     for statement, statistic, f, (lo, hi) in checks:
-        est = float(f(point))
-        b = np.asarray(f(boot), dtype=float)
+        with warnings.catch_warnings():  # empty selections give NaN: a finding not decided
+            warnings.simplefilter("ignore", RuntimeWarning)
+            est = float(f(point))
+            b = np.asarray(f(boot), dtype=float)
         b = b[np.isfinite(b)]
         ci = np.quantile(b, [a, 1 - a]) if b.size else (np.nan, np.nan)
         rows.append({"statement": statement, "statistic": statistic, "estimate": est,

@@ -32,6 +32,7 @@ from ..analysis.significance import LEVEL
 from ..analysis.surviving import surviving_findings
 from ..populations.build import HALF_SUFFIXES
 from ..populations.nulls import parse_null
+from ..tables import NO_ROBOT
 
 if TYPE_CHECKING:
     from .build import StudyFolder
@@ -77,6 +78,9 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
     for i, (label, (obs_pairs, nulls)) in enumerate(designs.items()):
         pops = design_populations(obs_pairs, nulls)
         r, p = complete_design(runs, peds, pops)
+        if (r["controller"] == NO_ROBOT).all():
+            missing[label] = f"the {label} design has no robot runs"
+            continue
         if r.empty:
             missing[label] = f"no episode has runs of every population of the {label} design"
             continue
@@ -94,8 +98,14 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
                "crossovers": tested.crossovers,
                "orderings": tested.orderings.assign(comparison=label),
                "ranks": tested.ranks.assign(comparison=label)}
+        if head["n_null"].max() > 0:
+            add["power"] = seed_sets_needed(head, n_sets)
+        else:
+            missing[f"power_{label}"] = (f"the study ran no null of the {label} comparison "
+                                         f"({'a swap' if label == 'matched' else 'a sized'} "
+                                         "null part)")
         if label == "matched":
-            add.update(_replicates(r, p, one, obs_pops, head, seed=seed, rng_seed=rng_seed,
+            add.update(_replicates(r, p, one, obs_pops, seed=seed, rng_seed=rng_seed,
                                    n_boot=n_boot, level=level, missing=missing))
         if label == "all_pairs":
             add["findings"] = surviving_findings(r[r["population"].isin(obs_pops)],
@@ -108,22 +118,14 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
     return tables, missing
 
 
-def _replicates(runs: pd.DataFrame, peds: pd.DataFrame, design: dict, observed: list[str],
-                head: pd.DataFrame, *, seed: int, rng_seed: int, n_boot: int, level: float,
+def _replicates(runs: pd.DataFrame, peds: pd.DataFrame, design: dict, observed: list[str], *,
+                seed: int, rng_seed: int, n_boot: int, level: float,
                 missing: dict[str, str]) -> dict[str, pd.DataFrame]:
-    """The matched comparison against its seed sets: curve, replicability, power."""
-    n_sets = int(seed_sets(runs, seed).nunique())
-    out: dict[str, pd.DataFrame] = {}
-    if n_sets >= 2:
-        curve = replicate_curve(runs, peds, design, observed, study_seed=seed, seed=rng_seed,
-                                n_boot=max(200, n_boot // 2), level=level)
-        out["curve"] = curve
-        out["replicability"] = replicability(runs, peds, design, study_seed=seed)
-    else:
+    """The matched comparison against its seed sets: rates curve and replicability."""
+    if int(seed_sets(runs, seed).nunique()) < 2:
         missing["curve"] = ("the matched pair was run on one episode seed set: add `seeds` to "
                             "its part to see rates against replicates")
-    if head["n_null"].max() > 0:
-        out["power"] = seed_sets_needed(head, n_sets)
-    else:
-        missing["power"] = "the study ran no null of the matched pair (a swap null part)"
-    return out
+        return {}
+    curve = replicate_curve(runs, peds, design, observed, study_seed=seed, seed=rng_seed,
+                            n_boot=max(200, n_boot // 2), level=level)
+    return {"curve": curve, "replicability": replicability(runs, peds, design, study_seed=seed)}
