@@ -175,5 +175,7 @@ def test_seed_sets_needed_scales_with_the_square_of_the_noise_to_effect_ratio():
     assert out["seed_sets_needed"].iloc[2] == np.ceil(3 * (z * se.iloc[2] / 0.05) ** 2)
     assert list(out["verdict"]) == ["undecided", "beats the null", "undecided",
                                     "no excess ≥ 0.05"]
+    few = seed_sets_needed(h.assign(n_null=9, p_value=0.1), 3)  # p ≥ 1/10 whatever happens
+    assert few["verdict"].iloc[1].startswith("above the null (too few null replicates")
     wider = seed_sets_needed(h.assign(ci_high=h["ci_high"] + 0.06, ci_low=h["ci_low"] - 0.06), 3)
     assert wider["seed_sets_needed"].iloc[0] > out["seed_sets_needed"].iloc[0]
