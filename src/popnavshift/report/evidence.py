@@ -105,8 +105,8 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
                                          f"({'a swap' if label == 'matched' else 'a sized'} "
                                          "null part)")
         if label == "matched":
-            add.update(_replicates(r, p, one, obs_pops, seed=seed, rng_seed=rng_seed,
-                                   n_boot=n_boot, level=level, missing=missing))
+            add.update(_replicates(r, p, one, obs_pops, tested.headline, seed=seed,
+                                   rng_seed=rng_seed, level=level, missing=missing))
         if label == "all_pairs":
             add["findings"] = surviving_findings(r[r["population"].isin(obs_pops)],
                                                  p[p["population"].isin(obs_pops)],
@@ -118,8 +118,8 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
     return tables, missing
 
 
-def _replicates(runs: pd.DataFrame, peds: pd.DataFrame, design: dict, observed: list[str], *,
-                seed: int, rng_seed: int, n_boot: int, level: float,
+def _replicates(runs: pd.DataFrame, peds: pd.DataFrame, design: dict, observed: list[str],
+                full: pd.DataFrame, *, seed: int, rng_seed: int, level: float,
                 missing: dict[str, str]) -> dict[str, pd.DataFrame]:
     """The matched comparison against its seed sets: rates curve and replicability."""
     if int(seed_sets(runs, seed).nunique()) < 2:
@@ -127,5 +127,5 @@ def _replicates(runs: pd.DataFrame, peds: pd.DataFrame, design: dict, observed: 
                             "its part to see rates against replicates")
         return {}
     curve = replicate_curve(runs, peds, design, observed, study_seed=seed, seed=rng_seed,
-                            n_boot=max(200, n_boot // 2), level=level)
+                            level=level, full=full)
     return {"curve": curve, "replicability": replicability(runs, peds, design, study_seed=seed)}
