@@ -535,3 +535,26 @@ def test_cli_decodes_a_release_laid_out_as_published(tmp_path, recs):
     assert len(lines) == 1 and "part-0001.parquet: SHA-256" in lines[0], proc.stderr
     proc = cli("--n", "10", "--no-verify-checksums")
     assert proc.returncode == 2 and "unreadable Parquet shard" in proc.stderr
+
+
+def test_a_study_file_passes_the_release_policy_to_the_persona_stage(tmp_path, recs):
+    from popnavshift.engine.runner import _stage_stamps, population_settings
+    from popnavshift.engine.study import study_from_dict
+    from popnavshift.hashing import digest
+    from popnavshift.pipeline import PopulationSettings, run_personas
+
+    folder = write_release(tmp_path / "rel", recs)
+    personas = {"source": str(folder), "n": 10, "sources": ["wiki", "gss"],
+                "verify_checksums": False}
+    study = study_from_dict({"name": "s", "personas": personas, "parts": {"main": {}}})
+    settings = population_settings(study)
+    assert (settings.sources, settings.verify_checksums) == (("wiki", "gss"), False)
+    table = run_personas(tmp_path, settings)
+    assert set(table["source"]) == {"wiki", "gss"}
+    # the default policy leaves an existing study's stamp as it was
+    plain = PopulationSettings()
+    assert _stage_stamps(plain)["personas"] == digest(["personas", "synthetic", 600, 0,
+                                                       "require"])
+    assert _stage_stamps(settings)["personas"] != _stage_stamps(
+        PopulationSettings(source=str(folder), n=10)
+    )["personas"]
