@@ -153,11 +153,8 @@ def report_cmd(
 
 
 def _write_report(study_dir: Path, n_boot: int = 1000) -> None:
-    try:
-        from ..report.build import build_report
-    except ImportError:  # the report stage is optional until it exists
-        console.print("[yellow]report stage not available[/]")
-        return
+    from ..report.build import build_report
+
     with console.status("writing the report…"):
         path = build_report(study_dir, n_boot=n_boot)
     console.print(f"report → {path}")
