@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from ..progress import console
-from . import app
+from . import MAX_WORKERS, app, say
 from .simulation import ParamOpt, parse_params
 
 
@@ -44,12 +44,12 @@ def evaluate(
         str, typer.Option(help="Comma-separated controllers to compare with.")
     ] = "reactive,early_yield,robot_orca",
     param: ParamOpt = None,
-    workers: Annotated[int, typer.Option("--workers", "-w", help="Worker processes.")] = 2,
+    workers: Annotated[int, typer.Option("--workers", "-w", min=1, max=MAX_WORKERS, help="Worker processes.")] = 2,
     check: Annotated[
         bool, typer.Option(help="Run the controller contract checker first.")
     ] = True,
-    n_boot: Annotated[int, typer.Option(help="Bootstrap resamples for the CIs.")] = 1000,
-    seed: Annotated[int, typer.Option(help="Seed of the bootstrap.")] = 0,
+    n_boot: Annotated[int, typer.Option(min=1, help="Bootstrap resamples for the CIs.")] = 1000,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the bootstrap.")] = 0,
 ) -> None:
     """Evaluate CONTROLLER under every population of a study, next to the baselines.
 
@@ -71,11 +71,11 @@ def evaluate(
     names = tuple(b.strip() for b in baselines.split(",") if b.strip())
     ev = run_evaluation(identity, s, base, out, baselines=names, workers=workers,
                         run_check=check,
-                        log=lambda msg: console.print(msg, highlight=False, soft_wrap=True))
+                        log=lambda msg: console.print(say(msg), highlight=False, soft_wrap=True))
     if ev.counts["controller_errors"]:
         console.print(f"[yellow]warning[/]: the controller raised in "
                       f"{ev.counts['controller_errors']} of its {ev.counts['controller_runs']} "
                       "runs (recorded as controller_error; see the card)")
     with console.status("writing the card…"):
         html, png = make_card(ev, n_boot=n_boot, seed=seed)
-    console.print(f"card → {html}\nfigure → {png}", soft_wrap=True, highlight=False)
+    console.print(f"card → {say(html)}\nfigure → {say(png)}", soft_wrap=True, highlight=False)

@@ -10,7 +10,7 @@ import typer
 from rich.table import Table
 
 from ..progress import console
-from . import app, folder
+from . import MAX_WORKERS, app, folder, say
 
 StudyArg = Annotated[
     str | None,
@@ -33,10 +33,10 @@ def plan(
     if json_out:
         typer.echo(json.dumps({"study": s.name, "parts": counts}, indent=2))
         return
-    t = Table("part", "episodes", "robot runs", "no-robot runs", "total", title=f"study {s.name}")
+    t = Table("part", "episodes", "robot runs", "no-robot runs", "total", title=f"study {say(s.name)}")
     for name, c in counts.items():
         t.add_row(
-            name,
+            say(name),
             str(c.get("episodes", "")),
             f"{c['robot_runs']:,}",
             f"{c['no_robot_runs']:,}",
@@ -60,7 +60,11 @@ def run(
     workers: Annotated[
         int,
         typer.Option(
-            "--workers", "-w", help="Worker processes (or Ray CPUs for a local Ray instance)."
+            "--workers",
+            "-w",
+            min=1,
+            max=MAX_WORKERS,
+            help="Worker processes (or Ray CPUs for a local Ray instance).",
         ),
     ] = 2,
     executor: Annotated[str, typer.Option(help="local (worker processes) or ray.")] = "local",
@@ -86,7 +90,9 @@ def run(
     target = folder(out or Path("study" if study is None else f"study-{s.name}"))
     report_ = run_study(s, target, workers=workers, executor_name=executor, address=address)
     if report_.nothing_to_do:
-        console.print(f"[green]nothing to do[/]: {target} is complete ({report_.planned:,} runs)")
+        console.print(
+            f"[green]nothing to do[/]: {say(target)} is complete ({report_.planned:,} runs)"
+        )
     else:
         import pandas as pd
 
@@ -97,13 +103,13 @@ def run(
         )
     if report:
         _write_report(target)
-    console.print(f"outputs in {target.resolve()}")
+    console.print(f"outputs in {say(target.resolve())}")
 
 
 @app.command("report")
 def report_cmd(
     study_dir: Annotated[Path, typer.Argument(help="A study folder written by `popnavshift run`.")],
-    n_boot: Annotated[int, typer.Option(help="Bootstrap resamples for the CIs.")] = 1000,
+    n_boot: Annotated[int, typer.Option(min=1, help="Bootstrap resamples for the CIs.")] = 1000,
 ) -> None:
     """Write DIR/report/index.html with every table (CSV) and figure (PNG, SVG)."""
     _write_report(study_dir, n_boot=n_boot)
@@ -117,4 +123,4 @@ def _write_report(study_dir: Path, n_boot: int = 1000) -> None:
         return
     with console.status("writing the report…"):
         path = build_report(study_dir, n_boot=n_boot)
-    console.print(f"report → {path}")
+    console.print(f"report → {say(path)}")

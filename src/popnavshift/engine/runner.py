@@ -243,7 +243,8 @@ def write_manifest(
             "respondent": {
                 k: v
                 for k, v in responses_meta.items()
-                if k in ("respondent", "model", "seed", "scale", "base_url", "temperature")
+                if k in ("respondent", "model", "served_models", "seed", "scale", "base_url",
+                         "temperature", "max_tokens")
             },
             "counts": counts,
             "tables": {"runs": n_runs, "pedestrians": n_peds},
