@@ -26,9 +26,11 @@ def plan(
     """Print the run counts of a study, per part (nothing is run)."""
     from ..engine.plan import count_runs
     from ..engine.study import load_study
+    from ..engine.validate import validate_study
     from ..episodes.specs import all_episodes
 
     s = load_study(study or "paper")
+    validate_study(s, all_episodes(s.seed))
     counts = count_runs(s, all_episodes(s.seed))
     if json_out:
         typer.echo(json.dumps({"study": s.name, "parts": counts}, indent=2))
@@ -116,11 +118,14 @@ def report_cmd(
 
 
 def _write_report(study_dir: Path, n_boot: int = 1000) -> None:
+    from ..engine.store import check_study_folder
+
     try:
         from ..report.build import build_report
     except ImportError:  # the report stage is optional until it exists
         console.print("[yellow]report stage not available[/]")
         return
+    check_study_folder(study_dir)
     with console.status("writing the report…"):
         path = build_report(study_dir, n_boot=n_boot)
     console.print(f"report → {say(path)}")
