@@ -50,7 +50,7 @@ def check_grid_values(selection: EpisodeSelection, episodes: Sequence, where: st
     for field, (attr, word) in GRID_FIELDS.items():
         wanted = getattr(selection, field)
         known = sorted({getattr(e, attr) for e in pool})
-        for value in wanted if known else ():  # no scene at all: the caller says so
+        for value in (wanted or ()) if known else ():  # no scene: the caller says so
             if not any(abs(float(value) - float(k)) < 1e-9 for k in known):
                 closest = min(known, key=lambda k: abs(float(k) - float(value)))
                 of = f" of {', '.join(scenes)}" if scenes else ""
