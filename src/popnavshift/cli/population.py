@@ -135,6 +135,7 @@ def probe(
     pressure set to Deadline. Network respondents cache in OUT/cache/llm.sqlite,
     so a second run makes no calls. Invalid records are listed, never dropped.
     """
+    from ..engine.lock import study_lock
     from ..pipeline import run_responses
 
     out = folder(out)
@@ -148,7 +149,8 @@ def probe(
         opts = {k: v for k, v in opts.items() if k == "seed"}
     s = _settings(respondent=respondent, respondent_options=opts, matched_n=matched_n, seed=seed)
     started = time.perf_counter()
-    df = run_responses(out, s, show_progress=True)
+    with study_lock(out):
+        df = run_responses(out, s, show_progress=True)
     stats = json.loads((out / "responses.json").read_text())
     console.print(
         f"[green]{len(df)} valid responses[/] ({stats['invalid']} invalid, "

@@ -84,13 +84,15 @@ def run(
     again: finished work is kept and verified, the rest is done, and the tables come
     out identical to an uninterrupted run.
     """
+    from ..engine.lock import study_lock
     from ..engine.runner import run_study
     from ..engine.study import load_study
     from .population import print_sizes
 
     s = load_study(study or "paper")
     target = folder(out or Path("study" if study is None else f"study-{s.name}"))
-    report_ = run_study(s, target, workers=workers, executor_name=executor, address=address)
+    with study_lock(target):
+        report_ = run_study(s, target, workers=workers, executor_name=executor, address=address)
     if report_.nothing_to_do:
         console.print(
             f"[green]nothing to do[/]: {say(target)} is complete ({report_.planned:,} runs)"
