@@ -97,7 +97,6 @@ def configure_logging(verbose: bool) -> None:
     handler.addFilter(RedactingFilter())
     logger.addHandler(handler)
     logger.setLevel(logging.INFO if verbose else logging.WARNING)
-    logger.propagate = False
 
 
 def folder(path: Path) -> Path:
@@ -117,7 +116,7 @@ def folder(path: Path) -> Path:
     return path
 
 
-def say(text: str) -> str:
+def say(text: object) -> str:
     """``text`` (a path, a name, a server's message) made safe for rich markup."""
     return escape(redact(str(text)))
 
@@ -135,7 +134,7 @@ def main() -> None:
         if STATE["verbose"]:
             console.print_exception()
         fail(str(exc))
-    except (KeyboardInterrupt, *_ABORTS):
+    except _INTERRUPTS:
         result = 130
     except _USAGE_ERRORS as exc:
         _usage_error(exc)
@@ -170,6 +169,7 @@ def _usage_errors() -> tuple[tuple[type[BaseException], ...], tuple[type[BaseExc
 
 
 _USAGE_ERRORS, _ABORTS = _usage_errors()
+_INTERRUPTS: tuple[type[BaseException], ...] = (KeyboardInterrupt, *_ABORTS)
 
 
 def _usage_error(exc: BaseException) -> None:

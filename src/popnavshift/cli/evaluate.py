@@ -44,7 +44,9 @@ def evaluate(
         str, typer.Option(help="Comma-separated controllers to compare with.")
     ] = "reactive,early_yield,robot_orca",
     param: ParamOpt = None,
-    workers: Annotated[int, typer.Option("--workers", "-w", min=1, max=MAX_WORKERS, help="Worker processes.")] = 2,
+    workers: Annotated[
+        int, typer.Option("--workers", "-w", min=1, max=MAX_WORKERS, help="Worker processes.")
+    ] = 2,
     check: Annotated[
         bool, typer.Option(help="Run the controller contract checker first.")
     ] = True,

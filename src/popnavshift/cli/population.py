@@ -126,7 +126,9 @@ def probe(
         int | None,
         _opt("Stop after this many records in a row fail at the transport level.", min=1),
     ] = None,
-    matched_n: Annotated[int, typer.Option(min=1, help="Matched sample size (deadline re-ask).")] = 202,
+    matched_n: Annotated[
+        int, typer.Option(min=1, help="Matched sample size (deadline re-ask).")
+    ] = 202,
     seed: Annotated[int, typer.Option(min=0, help="Seed of the matched sample.")] = 0,
 ) -> None:
     """Ask every persona the 8 encounter probes; write responses.parquet.

@@ -35,7 +35,8 @@ def plan(
     if json_out:
         typer.echo(json.dumps({"study": s.name, "parts": counts}, indent=2))
         return
-    t = Table("part", "episodes", "robot runs", "no-robot runs", "total", title=f"study {say(s.name)}")
+    t = Table("part", "episodes", "robot runs", "no-robot runs", "total",
+              title=f"study {say(s.name)}")
     for name, c in counts.items():
         t.add_row(
             say(name),

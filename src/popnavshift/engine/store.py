@@ -51,7 +51,7 @@ def readable_parquet(path: Path) -> bool:
     """Whether ``path`` is a Parquet file with an intact footer (a truncated or
     overwritten file has none). Pages are not decoded: the tables can be large."""
     try:
-        pq.ParquetFile(path).metadata
+        pq.read_metadata(path)
         return True
     except Exception:
         return False

@@ -443,7 +443,8 @@ class LLMRespondent(Respondent):
                 ans.answer = parse_answer(raw)
             except RespondentError as exc:
                 error = str(exc) if reply.note is None else f"{exc}; {reply.note}"
-                log.warning("%s %s: invalid reply (attempt %d/%d): %s", req.persona_id,
+                # info, not warning: the records that stay invalid are listed at the end
+                log.info("%s %s: invalid reply (attempt %d/%d): %s", req.persona_id,
                             req.variant, attempt + 1, self.max_reasks + 1, error)
                 self._log_failure(run, req, body, error, raw)
                 ans.raw = raw
