@@ -91,6 +91,8 @@ def test_install_hints_keep_their_extras():
         (["run", "quick", "--workers", "0"], "--workers"),
         (["run", "quick", "--workers", "-1"], "--workers"),
         (["run", "quick", "--workers", "100000"], "--workers"),
+        (["run", "quick", "--workers", str(4 * (os.cpu_count() or 1) + 1)], "per CPU"),
+        (["evaluate", "reactive", "--workers", "0"], "--workers"),
         (["run", "quick", "--nope"], "--nope"),
         (["bogus"], "bogus"),
         (["simulate"], "--episode"),

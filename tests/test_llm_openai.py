@@ -383,7 +383,7 @@ def test_backoff_is_exponential_capped_and_retry_after_wins():
     from email.utils import format_datetime
 
     from popnavshift.responses.llm import RetryPolicy
-    from popnavshift.responses.llm.transport import MAX_RETRY_AFTER, parse_retry_after
+    from popnavshift.responses.llm.retries import MAX_RETRY_AFTER, parse_retry_after
 
     policy = RetryPolicy(max_retries=5, backoff_base=0.5, backoff_cap=3.0)
     assert [policy.delay(n) for n in range(1, 6)] == [0.5, 1.0, 2.0, 3.0, 3.0]

@@ -116,6 +116,14 @@ def folder(path: Path) -> Path:
     return path
 
 
+def check_workers(workers: int, executor: str = "local") -> None:
+    """Local worker processes beyond 4 per CPU only thrash memory (each holds ~300 MB)."""
+    cpus = os.cpu_count() or 1
+    if executor == "local" and workers > 4 * cpus:
+        raise ConfigError(f"--workers {workers} is more than 4 per CPU ({cpus} CPUs here)",
+                          hint=f"use at most {4 * cpus}, or --executor ray for a cluster")
+
+
 def say(text: object) -> str:
     """``text`` (a path, a name, a server's message) made safe for rich markup."""
     return escape(redact(str(text)))

@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from ..progress import console
-from . import MAX_WORKERS, app, say
+from . import MAX_WORKERS, app, check_workers, say
 from .simulation import ParamOpt, parse_params
 
 
@@ -66,6 +66,7 @@ def evaluate(
     from ..plugins import controller_id
     from . import folder
 
+    check_workers(workers)
     s = load_study(study)
     base = folder(study_dir or Path(f"study-{s.name}"))
     params = parse_params(param)

@@ -10,7 +10,7 @@ import typer
 from rich.table import Table
 
 from ..progress import console
-from . import MAX_WORKERS, app, folder, say
+from . import MAX_WORKERS, app, check_workers, folder, say
 
 StudyArg = Annotated[
     str | None,
@@ -90,6 +90,7 @@ def run(
     from ..engine.study import load_study
     from .population import print_sizes
 
+    check_workers(workers, executor)
     s = load_study(study or "paper")
     target = folder(out or Path("study" if study is None else f"study-{s.name}"))
     with study_lock(target):

@@ -30,17 +30,8 @@ from ...errors import ConfigError
 from ...redact import redact
 from ..prompt import SYSTEM_PROMPT, build_prompt
 from ..schema import response_json_schema
-from .transport import (
-    REASK,
-    FinalError,
-    LLMRespondent,
-    Reply,
-    RetryableError,
-    check_setting,
-    check_status,
-    env_key,
-    is_http_url,
-)
+from .retries import FinalError, Reply, RetryableError, check_status
+from .transport import REASK, LLMRespondent, check_setting, env_key, is_http_url
 
 DEFAULT_BASE_URL = "https://generativelanguage.googleapis.com"
 API_VERSION = "v1beta"

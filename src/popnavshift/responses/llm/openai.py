@@ -20,16 +20,8 @@ from ...redact import redact
 from ..prompt import SYSTEM_PROMPT, build_prompt
 from ..schema import response_json_schema
 from .readiness import NotReady
-from .transport import (
-    REASK,
-    LLMRespondent,
-    Reply,
-    RetryableError,
-    check_setting,
-    check_status,
-    env_key,
-    is_http_url,
-)
+from .retries import Reply, RetryableError, check_status
+from .transport import REASK, LLMRespondent, check_setting, env_key, is_http_url
 
 
 class OpenAIRespondent(LLMRespondent):
