@@ -375,7 +375,10 @@ def test_workers_exit_when_the_main_process_is_killed(tmp_path):
 def test_a_study_name_cannot_leave_the_working_folder(tmp_path, name):
     work = tmp_path / "work"
     work.mkdir()
-    (work / "s.yaml").write_text(f"name: '{name}'\nparts:\n  main: {{populations: [mixed]}}\n")
+    tiny_study(work)  # a tiny study, renamed
+    text = (work / "tiny.yaml").read_text().replace("name: tiny", f"name: '{name}'")
+    (work / "tiny.yaml").unlink()
+    (work / "s.yaml").write_text(text)
     assert_one_line_error(cli("run", "s.yaml", cwd=work), "study name")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["work"]
     assert sorted(p.name for p in work.iterdir()) == ["s.yaml"]
