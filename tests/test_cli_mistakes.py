@@ -284,6 +284,15 @@ def test_a_truncated_run_table_is_rebuilt_from_its_shards(study, table):
     pd.testing.assert_frame_equal(pd.read_parquet(study / table), intact)
 
 
+@pytest.mark.parametrize("table", ["populations.parquet", "episodes.parquet"])
+def test_a_damaged_stage_table_is_made_again(study, table):
+    intact = pd.read_parquet(study / table)
+    truncate(study / table)
+    proc = rerun(study)
+    assert proc.returncode == 0, proc.stderr
+    pd.testing.assert_frame_equal(pd.read_parquet(study / table), intact)
+
+
 @pytest.mark.parametrize("damage", ["truncate", "garbage"])
 def test_report_refuses_a_damaged_table_in_one_line(study, damage):
     path = study / "pedestrians.parquet"

@@ -35,7 +35,7 @@ from ..responses.probes import PROBE_SET_HASH
 from ..tables import RUN_KEY
 from .executors import executor
 from .plan import batches, count_runs, plan_study
-from .store import RunStore, read_stamps
+from .store import RunStore, read_stamps, readable_parquet
 from .study import Study
 from .validate import validate_study
 from .worker import Context
@@ -115,7 +115,8 @@ def run_population_stages(folder: Path, s: PopulationSettings, show_progress: bo
     want = _stage_stamps(s)
     ran: list[str] = []
     for stage in STAGES:
-        if done.get(stage) == want[stage] and (folder / STAGE_FILES[stage]).exists() and not ran:
+        intact = readable_parquet(folder / STAGE_FILES[stage])  # a damaged output is redone
+        if done.get(stage) == want[stage] and intact and not ran:
             continue
         with console.status(f"stage {stage}…"):
             if stage == "personas":
@@ -154,7 +155,8 @@ def run_study(
     episodes = all_episodes(seed=study.seed)
     stamps = read_stamps(folder)
     episodes_stamp = digest(["episodes", study.seed])
-    if stamps.get("episodes") != episodes_stamp or not (folder / "episodes.parquet").exists():
+    episodes_path = folder / "episodes.parquet"
+    if stamps.get("episodes") != episodes_stamp or not readable_parquet(episodes_path):
         write_parquet(episodes_table(episodes), folder / "episodes.parquet")
         stamps["episodes"] = episodes_stamp
         write_json(stamps, folder / "stages.json")
