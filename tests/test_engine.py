@@ -56,19 +56,24 @@ def reference(tmp_path_factory):
 def test_paper_plans_the_main_grid_exactly():
     from popnavshift.episodes.specs import all_episodes
 
-    counts = count_runs(load_study("paper"), all_episodes(0))
+    study = load_study("paper")
+    counts = count_runs(study, all_episodes(0))
     assert counts["main"]["robot_runs"] == 7488 and counts["main"]["no_robot_runs"] == 2496
-    # matched: inside main (2,496 shared runs) plus two extra episode seed sets
-    assert counts["matched"]["total"] == 3 * 2496
-    extra = sum(
-        counts[p]["total"]
-        for p in ("matched", "mapping", "structure", "backend", "respondent", "noise")
-    )
+    pair = 2496  # the matched pair on the main grid: 312 episodes × 2 populations × 4
+    sets = 1 + len(study.parts["matched"].seeds)  # the main grid's draw and the extra ones
+    assert study.parts["swap_null"].seeds == study.parts["matched"].seeds  # same design
+    perms = study.parts["swap_null"].null_design.replicates
+    sized = study.parts["sized_null"].null_design.replicates
+    assert perms >= 19  # the permutation p-value can reach 0.05
+    assert counts["matched"]["total"] == sets * pair
+    assert counts["swap_null"]["total"] == perms * sets * pair
+    assert counts["sized_null"]["total"] == sized * 7 * 1248  # 7 populations besides mixed
+    extra = sum(counts[p]["total"] for p in ("matched", "swap_null", "sized_null", "mapping",
+                                              "structure", "backend", "respondent", "noise"))
     assert counts["distinct"]["total"] < 9984 + extra  # parts share identical runs
-    assert (
-        counts["distinct"]["total"]
-        == 9984 + 2 * 2496 + (1536 - 384) + (1440 - 240) + (384 - 192) + 2496 + 2496
-    )
+    assert counts["distinct"]["total"] == (
+        9984 + (sets - 1) * pair + perms * sets * pair + sized * 7 * 1248
+        + (1536 - 384) + (1440 - 240) + (384 - 192) + 2496 + sets * 2496)
 
 
 def test_batches_group_runs_by_episode_and_have_stable_ids():

@@ -129,10 +129,10 @@ def test_report_writes_page_tables_figures_and_replays(quick):
         assert (out / "tables" / f"{name}.csv").is_file(), name
         assert f'href="tables/{name}.csv"' in html
     for name in ("reversal_rates", "fig2_delay_change", "fig4_width_sensitivity", "kendall_tau",
-                 "tradeoff", "fig3a_profiles", "fig3b_matched_shift"):
+                 "tradeoff", "fig3a_profiles", "fig3b_matched_shift", "evidence_nulls"):
         assert (out / "figures" / f"{name}.png").stat().st_size > 1000, name
         assert (out / "figures" / f"{name}.svg").is_file(), name
-    assert html.count('src="data:image/png;base64,') == 7  # self-contained figures
+    assert html.count('src="data:image/png;base64,') == 8  # self-contained figures
     assert "<script" not in html.lower()
 
 

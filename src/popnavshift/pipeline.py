@@ -45,6 +45,10 @@ class PopulationSettings:
     respondent2_options: dict[str, Any] = field(default_factory=dict)
     #: also build the profile sets of the structure study (reassign, shuffle, blocks)
     structure: bool = False
+    #: null populations the study runs (:mod:`popnavshift.populations.nulls`), and the
+    #: profile sets they are run with (their members get only those profiles)
+    nulls: tuple[str, ...] = ()
+    null_mappings: tuple[str, ...] = ()
 
     @property
     def respondent2_label(self) -> str:
@@ -139,7 +143,7 @@ def run_profiles(folder: Path, s: PopulationSettings) -> pd.DataFrame:
 
 
 def run_populations(folder: Path, s: PopulationSettings) -> pd.DataFrame:
-    from .populations.build import HOMOGENEOUS_ID, attach_profiles, membership
+    from .populations.build import POPULATIONS, SPLIT_HALVES, attach_profiles, membership
     from .populations.figures import write_profile_figures
 
     personas = read_table(folder / "personas.parquet", "personas")
@@ -147,19 +151,20 @@ def run_populations(folder: Path, s: PopulationSettings) -> pd.DataFrame:
     profiles = read_table(folder / "profiles.parquet", "profiles")
     matched = matched_ids(personas, s.matched_n, s.seed)
     members = membership(
-        personas, responses, profiles[profiles["mapping"] == "A"], matched, seed=s.seed
+        personas, responses, profiles[profiles["mapping"] == "A"], matched,
+        populations=POPULATIONS + SPLIT_HALVES + s.nulls, seed=s.seed,
     )
+    is_null = members["population"].isin(s.nulls)
     tables = []
     for set_label in profiles["mapping"].unique():
         these = profiles[profiles["mapping"] == set_label]
-        covered = set(these["persona_id"])
-        if not set(members["persona_id"]) - {HOMOGENEOUS_ID} <= covered:
+        these_members = members[~is_null | (set_label in s.null_mappings)]
+        if set_label == s.respondent2_label:
             # a second respondent answered only the matched pair: those populations only
             have = set(these.loc[these["variant"] == "deadline", "persona_id"])
-            pair = members["population"].isin(["matched_base", "matched_deadline"])
-            tables.append(attach_profiles(members[pair & members["persona_id"].isin(have)], these))
-        else:
-            tables.append(attach_profiles(members, these))
+            pair = these_members["population"].isin(["matched_base", "matched_deadline"])
+            these_members = these_members[pair & these_members["persona_id"].isin(have)]
+        tables.append(attach_profiles(these_members, these))
     if s.structure:
         from .populations.perturb import shuffle_columns
 

@@ -23,8 +23,10 @@ def evaluate(
         ),
     ],
     study: Annotated[
-        str, typer.Option("--study", "-s", help="Baseline study: quick, paper or a YAML file.")
-    ] = "quick",
+        str | None,
+        typer.Option("--study", "-s", help="Baseline study: quick, paper or a YAML file "
+                     "(default: the study `make run` wrote into ./study, else quick)."),
+    ] = None,
     study_dir: Annotated[
         Path | None,
         typer.Option(
@@ -52,6 +54,12 @@ def evaluate(
     ] = True,
     n_boot: Annotated[int, typer.Option(min=1, help="Bootstrap resamples for the CIs.")] = 1000,
     seed: Annotated[int, typer.Option(min=0, help="Seed of the bootstrap.")] = 0,
+    safety_threshold: Annotated[
+        float,
+        typer.Option(min=0.0, max=1.0, help="Share of the controller's runs ending in a "
+                     "collision or a controller error above which the card shows a safety "
+                     "banner and the verdict is 'unsafe'."),
+    ] = 0.05,
 ) -> None:
     """Evaluate CONTROLLER under every population of a study, next to the baselines.
 
@@ -60,15 +68,14 @@ def evaluate(
 
     Example: popnavshift evaluate my_pkg.controller:MyBehavior --study quick
     """
-    from ..engine.study import load_study
     from ..evaluate import evaluate as run_evaluation
     from ..evaluate import make_card
     from ..plugins import controller_id
     from . import folder
 
     check_workers(workers)
-    s = load_study(study)
-    base = folder(study_dir or Path(f"study-{s.name}"))
+    s, default_dir = _baseline_study(study)
+    base = folder(study_dir or default_dir)
     params = parse_params(param)
     identity = controller_id(controller, params) if params else controller
     names = tuple(b.strip() for b in baselines.split(",") if b.strip())
@@ -80,5 +87,24 @@ def evaluate(
                       f"{ev.counts['controller_errors']} of its {ev.counts['controller_runs']} "
                       "runs (recorded as controller_error; see the card)")
     with console.status("writing the card…"):
-        html, png = make_card(ev, n_boot=n_boot, seed=seed)
+        html, png = make_card(ev, n_boot=n_boot, seed=seed, safety_threshold=safety_threshold)
     console.print(f"card → {say(html)}\nfigure → {say(png)}", soft_wrap=True, highlight=False)
+
+
+MADE_STUDY = Path("study")  # where `make run` writes the paper study
+
+
+def _baseline_study(name: str | None):
+    """The study to evaluate against and its default folder: the one named, else the
+    study `make run` left in ./study (its manifest holds the configuration), else quick."""
+    import json
+
+    from ..engine.study import load_study, study_from_dict
+
+    manifest = MADE_STUDY / "manifest.json"
+    if name is None and manifest.exists():
+        cfg = json.loads(manifest.read_text("utf-8")).get("study_config")
+        if cfg:
+            return study_from_dict(cfg, str(manifest)), MADE_STUDY
+    s = load_study(name or "quick")
+    return s, Path(f"study-{s.name}")

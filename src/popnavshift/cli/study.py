@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from ..progress import console
@@ -22,8 +23,18 @@ StudyArg = Annotated[
 def plan(
     study: StudyArg = None,
     json_out: Annotated[bool, typer.Option("--json", help="Print the counts as JSON.")] = False,
+    from_dir: Annotated[
+        Path | None,
+        typer.Option("--from", help="A finished study folder (a pilot) whose report gives the "
+                     "power advice (default: the study's own output folder, if it has one)."),
+    ] = None,
 ) -> None:
-    """Print the run counts of a study, per part (nothing is run)."""
+    """Print the run counts of a study, per part (nothing is run), and how many episode
+    seed sets it needs to separate each headline rate from its null.
+
+    The advice comes from a study that has already run (its report's
+    tables/evidence_power.csv): run a pilot, then plan the real study with --from.
+    """
     from ..engine.plan import count_runs
     from ..engine.study import load_study
     from ..engine.validate import validate_study
@@ -32,8 +43,12 @@ def plan(
     s = load_study(study or "paper")
     validate_study(s, all_episodes(s.seed))
     counts = count_runs(s, all_episodes(s.seed))
+    pilot = from_dir or Path("study" if study is None else f"study-{s.name}")
+    advice = power_advice(pilot / "report" / "tables" / "evidence_power.csv")
     if json_out:
-        typer.echo(json.dumps({"study": s.name, "parts": counts}, indent=2))
+        typer.echo(json.dumps({"study": s.name, "parts": counts,
+                               "power": advice.to_dict("records") if advice is not None
+                               else None}, indent=2, default=str))
         return
     t = Table("part", "episodes", "robot runs", "no-robot runs", "total",
               title=f"study {say(s.name)}")
@@ -47,6 +62,33 @@ def plan(
         )
     console.print(t)
     console.print("'distinct' is what a run executes: parts share identical runs.")
+    if advice is None:
+        console.print(f"power: no estimate yet ({escape(str(pilot))} has no report). Run a "
+                      "pilot, e.g. `popnavshift run quick`, then `popnavshift plan "
+                      f"{escape(study or 'paper')} --from study-quick`.", highlight=False)
+        return
+    p = Table("comparison", "metric", "rule", "excess", "effect to detect", "seed sets used",
+              "seed sets needed", "verdict now", title=f"power (from {pilot})")
+    for r in advice.itertuples(index=False):
+        need = "–" if r.seed_sets_needed != r.seed_sets_needed else f"{int(r.seed_sets_needed)}"
+        p.add_row(r.comparison, r.metric, r.rule, f"{100 * r.excess:+.1f} pp",
+                  f"{100 * r.effect:.0f} pp", str(int(r.seed_sets_used)), need, r.verdict)
+    console.print(p)
+    console.print("seed sets needed: to detect the effect (the observed excess, or 5 pp when "
+                  "smaller) with 80% power at one-sided 5%; add them as `seeds:` to the "
+                  "parts that run the comparison and its null.", highlight=False)
+
+
+def power_advice(path: Path):
+    """The power table a study's report wrote (None if there is none)."""
+    import pandas as pd
+
+    if not path.exists():
+        return None
+    cols = ["comparison", "metric", "rule", "excess", "effect", "seed_sets_used",
+            "seed_sets_needed", "verdict"]
+    table = pd.read_csv(path)
+    return table[cols] if set(cols) <= set(table.columns) else None
 
 
 @app.command()

@@ -92,7 +92,7 @@ def plan_study(study: Study, episodes: Iterable) -> list[Run]:
         for episode in base + extra:
             for mapping in part.mappings:
                 for backend in part.backends:
-                    for pop in part.populations:
+                    for pop in part.planned_populations:
                         for ctrl in controllers:
                             run = Run(episode, pop, ctrl, backend, mapping, part_name)
                             if run.key not in seen:
@@ -127,7 +127,7 @@ def count_runs(study: Study, episodes: Iterable) -> dict[str, dict[str, int]]:
     for name, part in study.parts.items():
         n_sets = 1 + len([s for s in part.seeds if s != study.seed])
         n_eps = len(select_episodes(part.episodes, eps)) * n_sets
-        per = n_eps * len(part.backends) * len(part.populations) * len(part.mappings)
+        per = n_eps * len(part.backends) * len(part.planned_populations) * len(part.mappings)
         robot = per * len(part.controllers)
         none = per if part.baseline else 0
         out[name] = {

@@ -69,6 +69,8 @@ STRUCTURE_LABELS = ("A~reassign", "A~shuffle", "A~block-")
 
 def population_settings(study: Study) -> PopulationSettings:
     used = {m for part in study.parts.values() for m in part.mappings}
+    null_parts = [part for part in study.parts.values() if part.null_design is not None]
+    nulls = tuple(dict.fromkeys(p for part in null_parts for p in part.planned_populations))
     second = study.respondent2
     return PopulationSettings(
         source=study.personas.source,
@@ -82,6 +84,8 @@ def population_settings(study: Study) -> PopulationSettings:
         respondent2=None if second is None else second.name,
         respondent2_options={} if second is None else dict(second.options),
         structure=any(m.startswith(STRUCTURE_LABELS) for m in used),
+        nulls=nulls,
+        null_mappings=tuple(sorted({m for part in null_parts for m in part.mappings})),
     )
 
 
@@ -104,7 +108,8 @@ def _stage_stamps(s: PopulationSettings) -> dict[str, str]:
         ]
     )
     stamps["profiles"] = digest(["profiles", stamps["responses"], list(s.mappings), s.structure])
-    stamps["populations"] = digest(["populations", stamps["profiles"], s.matched_n])
+    stamps["populations"] = digest(["populations", stamps["profiles"], s.matched_n]
+                                   + ([list(s.nulls), list(s.null_mappings)] if s.nulls else []))
     return stamps
 
 

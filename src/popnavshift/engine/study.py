@@ -16,13 +16,22 @@ from pathlib import Path
 from typing import Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from ..errors import ConfigError, UnknownNameError
 from ..hashing import digest
 from ..plugins import controller_id
-from ..populations.build import POPULATIONS, SPLIT_HALVES
+from ..populations.build import POPULATIONS, SPLIT_HALVES, is_known
+from ..populations.nulls import null_populations
 
+MATCHED_PAIR: tuple[str, str] = ("matched_base", "matched_deadline")
 SCENES = ("sidewalk", "head_on", "crossing", "bottleneck", "obstruction")
 SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
 
@@ -61,6 +70,15 @@ class EpisodeSelection(Strict):
         return v
 
 
+class NullDesign(Strict):
+    """A null design in place of a part's populations (:mod:`popnavshift.populations.nulls`):
+    ``swap`` permutations of the matched pair, or ``sized`` random subsets of mixed
+    matched in size to each of the part's populations."""
+
+    kind: Literal["swap", "sized"]
+    replicates: int = Field(19, ge=1, le=999)
+
+
 class Part(Strict):
     populations: tuple[str, ...] = POPULATIONS
     episodes: EpisodeSelection = EpisodeSelection()
@@ -74,10 +92,21 @@ class Part(Strict):
     #: extra study seeds: the part's episodes are repeated, drawn with each seed
     #: (ids ``<episode>@s<seed>``), so the report can show the spread across seed sets
     seeds: tuple[int, ...] = ()
+    #: run a null design instead of ``populations`` (which it stands in for): the
+    #: populations run are :attr:`planned_populations`
+    null_design: NullDesign | None = None
 
     @property
     def mappings(self) -> tuple[str, ...]:
         return (self.mapping,) if isinstance(self.mapping, str) else tuple(self.mapping)
+
+    @property
+    def planned_populations(self) -> tuple[str, ...]:
+        """The populations this part runs: its own, or its null design's."""
+        if self.null_design is None:
+            return self.populations
+        return null_populations(self.null_design.kind, self.null_design.replicates,
+                                self.populations)
 
     @field_validator("controllers", mode="before")
     @classmethod
@@ -92,9 +121,23 @@ class Part(Strict):
     @classmethod
     def _known_populations(cls, v):
         for p in v:
-            if p not in POPULATIONS + SPLIT_HALVES:
+            if not is_known(p):
                 raise UnknownNameError("population", p, POPULATIONS + SPLIT_HALVES)
         return v
+
+    @model_validator(mode="before")
+    @classmethod
+    def _swap_stands_for_matched(cls, data: Any) -> Any:
+        """A swap null stands in for the matched pair: that is its populations' default,
+        and any other populations are an error."""
+        if not (isinstance(data, dict) and isinstance(data.get("null_design"), dict)
+                and data["null_design"].get("kind") == "swap"):
+            return data
+        pops = data.get("populations", MATCHED_PAIR)
+        if sorted(pops) != sorted(MATCHED_PAIR):
+            raise ValueError(f"a swap null stands in for the matched pair: populations "
+                             f"{list(MATCHED_PAIR)} (the default), got {list(pops)}")
+        return {**data, "populations": tuple(MATCHED_PAIR)}
 
 
 def _controller_entry(entry: Any) -> Any:

@@ -283,6 +283,12 @@ def seed_set_id(episode_id: str, seed: int) -> str:
     return f"{episode_id}{SEED_SET_SEP}{int(seed)}"
 
 
+def seed_set_of(episode_id: str, study_seed: int = 0) -> int:
+    """The seed set an episode id was drawn with: ``k`` for ``…@s<k>``, else the study's."""
+    base, sep, seed_text = episode_id.partition(SEED_SET_SEP)
+    return int(seed_text) if sep and seed_text.isdigit() else int(study_seed)
+
+
 def get_episode(episode_id: str, seed: int = 0) -> EpisodeSpec:
     """The episode called ``episode_id`` (e.g. ``sidewalk-w1.8-d0.12-s0.6-v1``).
 

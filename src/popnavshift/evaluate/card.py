@@ -14,7 +14,11 @@ What the card says, for the evaluated part of a study (every population × cell)
   over cells, tie tolerances of the paper);
 * the populations where it does worst: lowest success share, then largest mean-delay
   gap to the best baseline;
-* the worst run: a collision, else a timeout, else the largest worst-decile delay.
+* the worst run: a collision, else a timeout, else the largest worst-decile delay;
+* first of all, the verdict (:mod:`.verdict`): per-population ranks with rank
+  intervals, wins and losses per cell, significant reversals (paired episode
+  bootstrap), and a safety banner when collisions or controller errors exceed a
+  threshold. A controller that fails every run never reads as robust.
 """
 
 from __future__ import annotations
@@ -42,10 +46,19 @@ from ..analysis import (
 from ..analysis.delay import UNIT
 from ..io import write_atomic, write_text
 from ..tables import RUN_KEY
+from .verdict import (
+    SAFETY_THRESHOLD,
+    VERDICT_METRICS,
+    Evidence,
+    Verdict,
+    card_evidence,
+    population_order,
+    verdict,
+)
 
 FAILURE_ORDER = ("pedestrian_collision", "world_collision", "timeout")  # worst first
 METRIC_LABELS = {"robot_time": "robot time [s]", "mean_delay": "mean delay [s]",
-                 "worst_decile": "worst-decile delay [s]"}
+                 "worst_decile": "worst-decile delay [s]", "cvar90": "CVaR-90 delay [s]"}
 N_WORST = 2  # populations named as "where it does worst"
 
 
@@ -63,22 +76,33 @@ class Card:
     reversals: pd.DataFrame
     errors: pd.DataFrame
     worst_run: dict[str, Any] | None
+    evidence: Evidence
+    verdict: Verdict
 
 
 def card_tables(runs: pd.DataFrame, pedestrians: pd.DataFrame, controller: str,
                 baselines: tuple[str, ...], *, rng: np.random.Generator,
-                n_boot: int = 1000) -> Card:
-    """Every table of the card from the evaluated part's runs and pedestrians."""
+                n_boot: int = 1000, seed_sets: int = 1,
+                safety_threshold: float = SAFETY_THRESHOLD) -> Card:
+    """Every table of the card from the evaluated part's runs and pedestrians.
+
+    ``rng`` draws the cell bootstrap of the raw rates, then the episode bootstrap of
+    the verdict; ``seed_sets`` is the number of episode seed sets in ``runs`` (for
+    the advice of an inconclusive verdict).
+    """
     paired = paired_delays(pedestrians)
     cells = cell_metrics(runs, paired)
     order = [controller, *baselines]
     outcomes = controller_outcomes(runs, cells).reindex(order)
     errors = runs.loc[runs["outcome"] == "controller_error",
                       ["episode", "population", "controller", "error"]].reset_index(drop=True)
+    reversals = reversals_against(cells, controller, baselines, rng=rng, n_boot=n_boot)
+    ev = card_evidence(runs, pedestrians, controller, baselines, rng=rng, n_boot=n_boot,
+                       seed_sets=seed_sets)
     return Card(controller, baselines, outcomes, per_population(cells),
-                population_gaps(cells, controller, baselines),
-                reversals_against(cells, controller, baselines, rng=rng, n_boot=n_boot),
-                errors, worst_run(runs, paired, controller))
+                population_gaps(cells, controller, baselines), reversals, errors,
+                worst_run(runs, paired, controller), ev,
+                verdict(runs, controller, ev, seed_sets=seed_sets, threshold=safety_threshold))
 
 
 def per_population(cells: pd.DataFrame) -> pd.DataFrame:
@@ -168,16 +192,19 @@ def render_png(card: Card, path: Path) -> Path:
 
     fig, axes = plt.subplots(2, 2, figsize=(12, 8), constrained_layout=True)
     pp = card.per_population
-    pops = sorted(pp["population"].unique())
+    pops = population_order(pp["population"].unique())
     x = np.arange(len(pops))
     palette = [plt.get_cmap("tab10")(i) for i in range(10)]
     colours = {b: palette[i % 10] for i, b in enumerate(card.baselines)}
+    ctrls = (*card.baselines, card.controller)
+    offset = {c: (i - (len(ctrls) - 1) / 2) * 0.15 for i, c in enumerate(ctrls)}
     for ax, metric in zip(axes.flat[:3], METRICS, strict=True):
-        for ctrl in (*card.baselines, card.controller):
+        for ctrl in ctrls:  # populations are categories: markers, no joining lines
             s = pp[pp["controller"] == ctrl].set_index("population")[metric].reindex(pops)
             mine = ctrl == card.controller
-            ax.plot(x, s.to_numpy(float), marker="o", lw=2.5 if mine else 1.2,
-                    color="black" if mine else colours[ctrl], label=ctrl, zorder=3 if mine else 2)
+            ax.scatter(x + offset[ctrl], s.to_numpy(float), marker="D" if mine else "o",
+                       s=45 if mine else 25, color="black" if mine else colours[ctrl],
+                       label=ctrl, zorder=3 if mine else 2)
         ax.set_title(METRIC_LABELS[metric])
         ax.set_xticks(x, pops, rotation=30, ha="right", fontsize=8)
         ax.grid(alpha=0.3)
@@ -217,15 +244,46 @@ def render_html(card: Card, meta: dict[str, Any], png_name: str, svg: str | None
     env.filters["pct"] = lambda v: "–" if _fmt(v) == "–" else f"{100 * v:.1f}%"
     pp = card.per_population.set_index(["population", "controller"])
     pops = list(card.gaps["population"])
+    order = population_order(card.per_population["population"].unique())
     rows = [{"population": p, "gap": card.gaps.set_index("population").loc[p].to_dict(),
              "own": pp.loc[(p, card.controller)].to_dict() if (p, card.controller) in pp.index
-             else {}} for p in pops]
+             else {}} for p in order]
     return env.from_string(_PAGE).render(
         card=card, meta=meta, png=png_name, svg=Markup(svg) if svg else None,
         outcomes=card.outcomes.reset_index().to_dict("records"), rows=rows,
         worst=pops[:N_WORST], metrics=METRICS, labels=METRIC_LABELS, tol=TOLERANCES,
+        ranks_metrics=VERDICT_METRICS,
         reversals=card.reversals.to_dict("records"), top=_most_reversed(card.reversals),
-        errors=card.errors.head(10).to_dict("records"))
+        errors=card.errors.head(10).to_dict("records"), verdict=card.verdict,
+        ranks=_rank_rows(card, order), wins=_win_rows(card),
+        sig=card.evidence.reversals.to_dict("records"))
+
+
+def _rank_rows(card: Card, order: list[str]) -> list[dict[str, Any]]:
+    """Per population: the controller's rank [interval] among all compared, per metric."""
+    r = card.evidence.ranks
+    own = r[r["controller"] == card.controller].set_index(["population", "metric"])
+    n = r.groupby(["population", "metric"])["controller"].nunique()
+    rows = []
+    for p in order:
+        cells = {}
+        for m in VERDICT_METRICS:
+            if (p, m) not in own.index:
+                cells[m] = "–"
+                continue
+            x = own.loc[(p, m)]
+            span = (str(x["rank"]) if x["rank_low"] == x["rank_high"]
+                    else f"{x['rank']} [{x['rank_low']}–{x['rank_high']}]")
+            cells[m] = f"{span} of {n[(p, m)]}"
+        rows.append({"population": p, **cells})
+    return rows
+
+
+def _win_rows(card: Card) -> list[dict[str, Any]]:
+    """Per (baseline, metric): cells significantly better / worse / tied, over populations."""
+    w = card.evidence.wins.groupby(["baseline", "metric"], sort=False)[
+        ["better", "worse", "tied"]].sum().reset_index()
+    return w.to_dict("records")
 
 
 def write_card(card: Card, meta: dict[str, Any], out: Path, svg: str | None) -> tuple[Path, Path]:
@@ -252,6 +310,10 @@ _PAGE = """<!doctype html>
 table{border-collapse:collapse;margin:.4em 0}td,th{border:1px solid #ccc;padding:2px 7px}
 td{text-align:right}td.l,th{text-align:left}.bad{color:#b00;font-weight:bold}
 .warn{background:#fff3cd;border:1px solid #e0c36a;padding:.5em 1em}
+.danger{background:#fde2e1;border:2px solid #b00;padding:.5em 1em;color:#600}
+.verdict{border:2px solid #3b5b92;background:#f3f6fb;padding:.6em 1em;font-size:15px}
+.verdict.unsafe,.verdict.fails-every-run{border-color:#b00;background:#fde2e1}
+.verdict.inconclusive{border-color:#c90;background:#fff8e1}
 .cols{display:flex;gap:2em;flex-wrap:wrap}h2{margin:.8em 0 .2em;font-size:1.15em}
 .small{color:#555;font-size:12px}.replay{overflow-x:auto}
 .replay svg{width:auto;height:auto;max-width:100%;max-height:560px}</style></head><body>
@@ -260,6 +322,11 @@ td{text-align:right}td.l,th{text-align:left}.bad{color:#b00;font-weight:bold}
 {{ meta.n_populations }} populations, backend(s) {{ meta.backends }}, mapping(s)
 {{ meta.mappings }}) against {{ card.baselines | join(", ") }}. Contract check:
 {{ meta.check }}. Runs: {{ meta.reused }} reused, {{ meta.executed }} executed.</p>
+<div class="verdict {{ verdict.label | replace(' ', '-') }}"><b>Verdict: {{ verdict.label }}.</b>
+{{ verdict.text }}</div>
+{% if verdict.safety %}<p class="danger"><b>Safety:</b> {% for l in verdict.safety %}{{ l
+}}{% if not loop.last %}; {% endif %}{% endfor %}. Rankings of an unsafe controller are not
+evidence of robustness.</p>{% endif %}
 {% if card.errors | length %}<p class="warn"><b>Controller errors:</b> the controller raised
 in {{ meta.n_errors }} of its {{ meta.n_runs }} runs; they count as failures (robot time
 45 s, no pedestrian delay). First message: <code>{{ card.errors.error.iloc[0] }}</code></p>
@@ -287,7 +354,24 @@ against the baselines never reverses between two populations.{% endif %}</p>
 <td>{% if r.comparisons %}{{ r.ci_low | pct }}–{{ r.ci_high | pct }}{% else %}–{% endif
 %}</td></tr>{% endfor %}</table>
 </div></div>
-<h2>Per population, worst first (mean over cells; Δ = minus the best baseline, positive is
+<h2>Rank per population (1 = best of {{ card.baselines | length + 1 }}; [90% interval over
+episode resamples])</h2>
+<table><tr><th>population</th>{% for m in ranks_metrics %}<th>{{ labels[m] }}</th>{% endfor %}</tr>
+{% for r in ranks %}<tr><td class="l">{{ r.population }}</td>{% for m in ranks_metrics
+%}<td>{{ r[m] }}</td>{% endfor %}</tr>{% endfor %}</table>
+<div class="cols"><div>
+<h2>Cells where it is significantly better / worse</h2><table><tr><th>baseline</th>
+<th>metric</th><th>better</th><th>worse</th><th>tied</th></tr>
+{% for w in wins %}<tr><td class="l">{{ w.baseline }}</td><td class="l">{{ w.metric }}</td>
+<td>{{ w.better }}</td><td>{{ w.worse }}</td><td>{{ w.tied }}</td></tr>{% endfor %}</table>
+</div><div>
+<h2>Significant reversals (both orderings significant)</h2><table><tr><th>baseline</th>
+<th>metric</th><th>significant</th><th>raw (incl. near-ties)</th></tr>
+{% for r in sig %}<tr><td class="l">{{ r.baseline }}</td><td class="l">{{ r.metric }}</td>
+<td>{{ r.sig_reversals }} / {{ r.sig_comparable }}</td>
+<td>{{ r.raw_reversals }} / {{ r.raw_comparable }}</td></tr>{% endfor %}</table>
+</div></div>
+<h2>Per population (mean over cells; Δ = minus the best baseline, positive is
 worse)</h2>
 <table><tr><th>population</th><th>success %</th>{% for m in metrics %}<th>{{ labels[m] }}</th>
 <th>Δ</th>{% endfor %}</tr>

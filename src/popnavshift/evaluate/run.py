@@ -47,6 +47,7 @@ from ..pipeline import read_table
 from ..plugins import controller_id, make_controller, parse_controller_id, run_code_stamp
 from ..progress import run_progress
 from ..tables import RUN_KEY
+from .verdict import SAFETY_THRESHOLD
 
 BASELINES: tuple[str, ...] = ("reactive", "early_yield", "robot_orca")
 Tables = tuple[pd.DataFrame, pd.DataFrame]  # runs, pedestrians
@@ -258,17 +259,22 @@ def replay(ev: Evaluation, key: dict[str, Any]) -> tuple[dict, dict]:
     return result.trajectory, result.run
 
 
-def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0) -> tuple[Path, Path]:
+def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0,
+              safety_threshold: float = SAFETY_THRESHOLD) -> tuple[Path, Path]:
     """Write ``card.html`` and ``card.png`` into ``ev.out``; returns their paths.
-    ``seed`` drives the bootstrap (the same seed gives the same intervals)."""
+    ``seed`` drives the bootstrap (the same seed gives the same intervals);
+    ``safety_threshold`` is the share of collisions or errors that raises the banner."""
     import numpy as np
 
     from ..analysis import episode_cells
+    from ..analysis.replicates import seed_sets
     from ..viz.replay import render_svg
     from .card import card_tables, write_card
 
+    n_sets = int(seed_sets(ev.runs, ev.study.seed).nunique())
     card = card_tables(ev.runs, ev.pedestrians, ev.controller, ev.baselines,
-                       rng=np.random.default_rng(seed), n_boot=n_boot)
+                       rng=np.random.default_rng(seed), n_boot=n_boot, seed_sets=n_sets,
+                       safety_threshold=safety_threshold)
     svg, note = None, ""
     if card.worst_run is not None:
         traj, row = replay(ev, card.worst_run)
@@ -286,6 +292,6 @@ def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0) -> tuple[Pat
             "backends": ", ".join(sorted(ev.runs["backend"].unique())),
             "mappings": ", ".join(sorted(ev.runs["mapping"].unique())),
             "replay_note": note, "n_boot": n_boot, "seed": seed,
-            "base_folder": str(ev.base_folder)}
+            "base_folder": str(ev.base_folder), "seed_sets": n_sets}
     return write_card(card, meta, ev.out, svg)
 

@@ -10,6 +10,7 @@ episode takes member ⌊u_k · n⌋ (see :mod:`popnavshift.episodes`).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from functools import cache
 
 import numpy as np
 import pandas as pd
@@ -18,6 +19,7 @@ from ..errors import InputError, UnknownNameError
 from ..hashing import stable_seed
 from ..personas.fields import HIGH_TIME_PRESSURE, MOBILITY_SUPPORT
 from ..tables import PARAMS, check_table
+from .nulls import SIZED_SOURCE, parse_null, sized_subset, swap_variants
 
 POPULATIONS: tuple[str, ...] = (
     "homogeneous",
@@ -68,10 +70,12 @@ def membership(
     """Rows (population, member, persona_id, variant), members sorted by id.
 
     Only baseline records with a valid response belong to cohorts; the matched
-    pair uses the ``matched`` ids present in both variants.
+    pair uses the ``matched`` ids present in both variants. Null populations
+    (:mod:`.nulls`: swap arms of the matched pair, size-matched subsets of mixed)
+    are built from the same records.
     """
     for name in populations:
-        if name not in POPULATIONS + SPLIT_HALVES:
+        if not is_known(name):
             raise UnknownNameError("population", name, POPULATIONS + SPLIT_HALVES)
     base = (
         personas.merge(
@@ -87,24 +91,44 @@ def membership(
     )
     have_deadline = set(responses.loc[responses["variant"] == "deadline", "persona_id"])
     pair = sorted(set(matched) & have_deadline & set(base["persona_id"]))
-    rows: list[tuple[str, str, str]] = []
-    for name in populations:
+
+    @cache
+    def members(name: str) -> list[tuple[str, str]]:
+        null = parse_null(name)
+        if null is not None and null.kind == "swap":
+            return list(zip(pair, swap_variants(pair, null.replicate, null.arm, seed),
+                            strict=True))
+        if null is not None:
+            source = [pid for pid, _ in members(SIZED_SOURCE)]
+            size = len(members(null.of))
+            return [(pid, "baseline")
+                    for pid in sized_subset(source, size, null.of, null.replicate, seed)]
         if name == "homogeneous":
-            rows.append((name, HOMOGENEOUS_ID, "baseline"))
-        elif name in ("matched_base", "matched_deadline"):
-            variant = "baseline" if name == "matched_base" else "deadline"
-            rows += [(name, pid, variant) for pid in pair]
-        elif name in SPLIT_HALVES:
-            rows += [(name, pid, "baseline") for pid in split_half(base, name, seed)]
-        else:
-            ids = base.loc[_SELECTORS[name](base).to_numpy(), "persona_id"]
-            rows += [(name, str(pid), "baseline") for pid in ids]
+            return [(HOMOGENEOUS_ID, "baseline")]
+        if name in ("matched_base", "matched_deadline"):
+            return [(pid, "baseline" if name == "matched_base" else "deadline") for pid in pair]
+        if name in SPLIT_HALVES:
+            return [(pid, "baseline") for pid in split_half(base, name, seed)]
+        ids = base.loc[_SELECTORS[name](base).to_numpy(), "persona_id"]
+        return [(str(pid), "baseline") for pid in ids]
+
+    rows = [(name, pid, variant) for name in populations for pid, variant in members(name)]
     df = pd.DataFrame(rows, columns=["population", "persona_id", "variant"])
     df["member"] = df.groupby("population", sort=False).cumcount().astype("int64")
     empty = [p for p in populations if p not in set(df["population"])]
     if empty:
         raise InputError(f"population(s) {', '.join(empty)} have no members")
     return df[["population", "member", "persona_id", "variant"]]
+
+
+def is_known(name: str) -> bool:
+    """Whether ``name`` is a built-in population, a split half or a null population
+    (whose size-matched source is itself known)."""
+    null = parse_null(name)
+    if null is not None:
+        return null.kind == "swap" or (null.of != SIZED_SOURCE and is_known(null.of)
+                                       and parse_null(null.of) is None)
+    return name in POPULATIONS + SPLIT_HALVES
 
 
 def split_half(base: pd.DataFrame, name: str, seed: int) -> list[str]:

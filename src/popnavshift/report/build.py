@@ -144,8 +144,9 @@ def main_grid(study: StudyFolder) -> tuple[pd.DataFrame, pd.DataFrame, str]:
 
     The part is read from the manifest's study configuration: its episodes,
     populations, controllers (plus the no-robot baseline), backends and mapping.
-    Split-half populations (for the noise floor) are kept on any episode of that
-    backend and mapping. Without a configuration every run is kept.
+    Split-half populations (for the noise floor) are kept on the same episodes, so the
+    floor is at Table I's design (their other seed sets feed the seed-spread section).
+    Without a configuration every run is kept.
     """
     from ..engine.plan import select_episodes
     from ..engine.study import study_from_dict
@@ -166,8 +167,9 @@ def main_grid(study: StudyFolder) -> tuple[pd.DataFrame, pd.DataFrame, str]:
     def keep(df: pd.DataFrame) -> pd.DataFrame:
         grid = (_isin(df, "controller", (NO_ROBOT, *part.controllers))
                 & _isin(df, "backend", part.backends) & _isin(df, "mapping", mappings))
-        main = _isin(df, "episode", ids) & _isin(df, "population", part.populations)
-        return df[grid & (main | is_half(df["population"]))]
+        on_grid = _isin(df, "episode", ids)  # the paper's design: one seed set
+        main = _isin(df, "population", part.populations) | is_half(df["population"])
+        return df[grid & on_grid & main]
 
     runs, peds = keep(runs), keep(peds)
     text = (f"part {name!r}: {runs['episode'].nunique()} episodes, populations "
@@ -401,6 +403,8 @@ def build_report(folder: Path, *, rng_seed: int = 0, n_boot: int = 1000, replays
     Returns the path of ``index.html``. Tables go to ``report/tables/*.csv``,
     figures to ``report/figures/*.png|svg``, replays to ``report/replays/*.html``.
     """
+    from .answer import with_null_rates, write_answer_figures
+    from .evidence import evidence_tables
     from .figures import profile_figures, write_figures
     from .html import render_report
     from .robustness import robustness_tables
@@ -409,7 +413,13 @@ def build_report(folder: Path, *, rng_seed: int = 0, n_boot: int = 1000, replays
     out = study.folder / REPORT_DIR
     runs, peds, selection = main_grid(study)
     analysis = analyse(runs, peds, selection=selection, rng_seed=rng_seed, n_boot=n_boot)
+    evidence, evidence_missing = evidence_tables(study, rng_seed=rng_seed, n_boot=n_boot)
+    analysis.tables.update(evidence)
+    analysis.missing.update(evidence_missing)
+    if "reversals" in analysis.tables:
+        analysis.tables["reversals"] = with_null_rates(analysis.tables["reversals"], evidence)
     figures = write_figures(analysis, out / "figures")
+    figures.update(write_answer_figures(evidence, out / "figures"))
     fig3, why = profile_figures(study.folder / "figures", study.populations, out / "figures")
     if why:
         analysis.missing["profiles"] = why

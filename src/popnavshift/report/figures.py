@@ -66,7 +66,8 @@ def pop_order(names) -> list[str]:
 
 def plot_reversal_rates(table: pd.DataFrame) -> plt.Figure:
     """Reversal rate per metric with its bootstrap interval, all vs completed cells; the paper's
-    value as a black diamond. One panel per comparison (matched pair, all pairs)."""
+    value as a black diamond and, where the study ran one, the null's rate as a red line.
+    One panel per comparison (matched pair, all pairs)."""
     comps = [c for c in ("matched", "all_pairs") if (table["comparison"] == c).any()]
     fig, axes = plt.subplots(1, len(comps), figsize=(5.2 * len(comps), 3.6), squeeze=False,
                              sharey=True)
@@ -83,6 +84,10 @@ def plot_reversal_rates(table: pd.DataFrame) -> plt.Figure:
             paper = t["paper_rate"].to_numpy(float) * 100
             ax.scatter(xs, paper, marker="D", color="black", zorder=3,
                        label="paper" if k == 0 else None)
+            if "null_rate" in t and t["null_rate"].notna().any():
+                null = t["null_rate"].to_numpy(float) * 100
+                ax.hlines(null, xs - 0.2, xs + 0.2, color="#C44E52", lw=2.5, zorder=4,
+                          label="null at the same design")
         ax.set_xticks(x, [METRIC_LABELS[m] for m in METRICS], fontsize=8)
         ax.set_title("Matched time-pressure shift" if comp == "matched" else "All population pairs",
                      fontsize=10)

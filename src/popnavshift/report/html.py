@@ -447,9 +447,12 @@ def _second_respondent(manifest: dict[str, Any]) -> str:
 def render_report(study: StudyFolder, a: Analysis, figs: dict[str, Path], out: Path,
                   settings: dict[str, Any]) -> str:
     """The HTML page (a string) of analysis ``a``; ``figs`` maps figure names to PNG paths."""
+    from .answer import answer_section, ranks_section, replicates_section, surviving_section
     from .robustness import robustness_sections  # it builds on this module's blocks
 
     sections = [
+        answer_section(a.tables, a.missing, figs, out), ranks_section(a.tables),
+        surviving_section(a.tables), replicates_section(a.tables, a.missing, figs, out),
         populations_section(study, a.populations, figs, out), checks_section(a), summary_section(a),
         reversals_section(a, figs, out), noise_section(a), outcomes_section(a),
         change_section(a, figs, out), sensitivity_section(a, figs, out),

@@ -125,13 +125,14 @@ def seed_spread(
     study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
 ) -> pd.DataFrame | None:
     """Reversal rates (all population pairs of the part) per seed set, for every part
-    with extra ``seeds``; None when no part has any. Columns: part, seed_set, metric,
-    backend, mapping, reversals, comparisons, rate, ci_low, ci_high."""
+    with extra ``seeds`` (null designs aside: the answer section tests them); None when
+    no part has any. Columns: part, seed_set, metric, backend, mapping, reversals,
+    comparisons, rate, ci_low, ci_high."""
     cfg = study.manifest.get("study_config") or {}
     frames = []
     for name, part in (cfg.get("parts") or {}).items():
         seeds = [s for s in part.get("seeds", []) if s != cfg.get("seed", 0)]
-        if not seeds:
+        if not seeds or part.get("null_design"):
             continue
         for seed in [cfg.get("seed", 0), *seeds]:
             cells = part_cells(study, name, seed)

@@ -1,0 +1,160 @@
+"""What a study's runs can decide: significance, nulls and ranks in one pass.
+
+``test_comparisons(runs, pedestrians, designs, ...)`` runs the paired episode
+bootstrap once over the given runs (every population, controller and cell) and,
+per metric, lays out every controller ordering (:mod:`.significance`), then for
+each comparison design (observed pairs + null replicates, :func:`.nulls.headline_designs`)
+tests the observed reversal rates against the null (:mod:`.nulls`) and runs the
+Gail–Simon crossover test over the observed populations. ``controller_ranks``
+gives each controller's rank per population with rank intervals from the same
+resamples.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from .delay import cell_metrics, paired_delays
+from .nulls import CI_LEVEL, null_rates, null_test
+from .resample import build_design, episode_weights, resampled_metrics
+from .significance import ALPHA, LEVEL, Orderings, crossover_tests, orderings
+
+#: The metrics the significance analysis ranks: the paper's three and CVaR-90.
+EVIDENCE_METRICS: tuple[str, ...] = ("robot_time", "mean_delay", "worst_decile", "cvar90")
+N_BOOT = 1000
+
+
+@dataclass
+class Tested:
+    """Tables of :func:`test_comparisons` (each has a ``comparison`` column where it applies).
+
+    ``headline``: observed vs null per (comparison, metric, rule); ``null_rates``: every
+    null replicate's rate; ``crossovers``: Gail–Simon tests per (comparison, metric,
+    unit, controller pair); ``orderings``: every ordering of the observed populations.
+    """
+
+    headline: pd.DataFrame
+    null_rates: pd.DataFrame
+    crossovers: pd.DataFrame
+    orderings: pd.DataFrame
+    ranks: pd.DataFrame
+    n_boot: int
+    level: float
+    #: (comparison, metric, rule) → the excess over the null in every resample (B,)
+    boot_excess: dict[tuple[str, str, str], np.ndarray] = field(default_factory=dict)
+
+
+def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
+                     designs: dict[str, tuple[list, list]], observed: Sequence[str], *,
+                     rng: np.random.Generator, n_boot: int = N_BOOT, level: float = LEVEL,
+                     alpha: float = ALPHA, method: str = "bh",
+                     metrics: Sequence[str] = EVIDENCE_METRICS,
+                     ci_level: float = CI_LEVEL) -> Tested:
+    """Every comparison design of ``designs`` tested on ``runs`` (see the module doc).
+
+    Args:
+      runs, pedestrians: the runs analysed (observed and null populations, every seed
+        set to pool: a cell pools all its episodes).
+      designs: label → (observed pairs, one list of pairs per null replicate).
+      observed: the observed populations (orderings, crossover tests and ranks).
+      rng: draws the episode resamples (shared by every metric and population).
+    """
+    paired = paired_delays(pedestrians)
+    cells = cell_metrics(runs, paired)
+    design = build_design(runs, paired)
+    weights = episode_weights(design, n_boot, rng)
+    boot_excess: dict[tuple[str, str, str], np.ndarray] = {}
+    frames: dict[str, list[pd.DataFrame]] = {k: [] for k in ("head", "null", "cross", "ord",
+                                                           "rank")}
+    for metric in metrics:
+        boot = resampled_metrics(design, weights, (metric,))
+        o = orderings(cells, design, boot, metric, level=level)
+        for label, (obs_pairs, null_pairs) in designs.items():
+            rows = null_test(o, obs_pairs, null_pairs, ci_level=ci_level)
+            for row in rows:
+                boot_excess[(label, metric, row["rule"])] = row.pop("boot_excess")
+            frames["head"].append(pd.DataFrame(rows).assign(comparison=label))
+            frames["null"].append(null_rates(o, null_pairs).assign(comparison=label))
+            pops = sorted({p for pair in obs_pairs for p in pair})
+            frames["cross"].append(crossover_tests(o, pops, method=method, alpha=alpha)
+                                   .assign(comparison=label, metric=metric))
+        table = o.table()
+        frames["ord"].append(table[table["population"].isin(observed)])
+        frames["rank"].append(controller_ranks(cells, boot[metric], metric, observed,
+                                               level=level))
+        del boot, o
+    cat = {k: pd.concat(v, ignore_index=True) if v else pd.DataFrame() for k, v in frames.items()}
+    return Tested(cat["head"], cat["null"], cat["cross"], cat["ord"], cat["rank"], n_boot,
+                  level, boot_excess)
+
+
+def controller_ranks(cells: pd.DataFrame, boot: np.ndarray, metric: str,
+                     populations: Sequence[str], *, level: float = LEVEL) -> pd.DataFrame:
+    """Each controller's rank (1 = best, lowest) per population on the grid mean of
+    ``metric`` (mean over the population's cells, as Table II), with the interval of
+    its rank over the resamples (``boot``: (B, R) aligned with ``cells``) and the
+    share of resamples in which it ranks first. Units where a controller has no value
+    are left out for every controller of that population, so means are paired."""
+    rows = []
+    for pop in populations:
+        sel = (cells["population"] == pop).to_numpy()
+        sub = cells.loc[sel, ["backend", "mapping", "cell", "controller", metric]]
+        wide = sub.pivot(index=["backend", "mapping", "cell"], columns="controller",
+                         values=metric)
+        keep_units = wide.notna().all(axis=1)
+        if not keep_units.any():
+            continue
+        ctrl = list(wide.columns)
+        idx = np.flatnonzero(sel)
+        pos = sub.reset_index(drop=True).assign(i=idx).pivot(
+            index=["backend", "mapping", "cell"], columns="controller", values="i")
+        pos = pos[keep_units].to_numpy(np.int64)  # (U, K)
+        point = wide[keep_units].to_numpy(float).mean(axis=0)
+        with np.errstate(all="ignore"):
+            means = np.nanmean(boot[:, pos], axis=1)  # (B, K)
+        ranks = means.argsort(axis=1).argsort(axis=1) + 1
+        a = (1 - level) / 2
+        for j, c in enumerate(ctrl):
+            lo, hi = np.quantile(ranks[:, j], [a, 1 - a])
+            rows.append({"metric": metric, "population": pop, "controller": c,
+                         "value": float(point[j]),
+                         "rank": int(point.argsort().argsort()[j] + 1),
+                         "rank_low": int(lo), "rank_high": int(hi),
+                         "p_first": float((ranks[:, j] == 1).mean()),
+                         "n_cells": int(keep_units.sum())})
+    return pd.DataFrame(rows)
+
+
+def crossover_summary(crossovers: pd.DataFrame) -> pd.DataFrame:
+    """Per (comparison, metric): tests, tests with p ≤ ALPHA unadjusted, and crossovers
+    after multiplicity control."""
+    g = crossovers.groupby(["comparison", "metric"], sort=False)
+    return g.agg(tests=("p", "count"), raw_p_below=("p", lambda p: int((p <= ALPHA).sum())),
+                 crossovers=("crossover", "sum")).reset_index()
+
+
+def significant_share(o: Orderings) -> float:
+    """Share of present orderings that are significant (a quick read of power)."""
+    s = o.sig[np.isfinite(o.sig)]
+    return float((s != 0).mean()) if s.size else float("nan")
+
+
+def complete_design(runs: pd.DataFrame, pedestrians: pd.DataFrame, populations: Sequence[str]
+                    ) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The runs and pedestrians of ``populations`` on the episodes (per backend and
+    mapping) where every one of them was run, with every controller the others have:
+    an observed comparison and its nulls are then computed on the same design."""
+    r = runs[runs["population"].isin(populations)]
+    key = ["episode", "backend", "mapping"]
+    per = r.groupby([*key, "population"]).size().unstack("population")
+    full = per.reindex(columns=list(populations)).notna().all(axis=1)
+    keep = per.index[full & per.nunique(axis=1).eq(1)]  # same run count everywhere
+    ok = pd.MultiIndex.from_frame(r[key]).isin(keep)
+    r = r[ok]
+    p = pedestrians[pedestrians["population"].isin(populations)]
+    p = p[pd.MultiIndex.from_frame(p[key]).isin(keep)]
+    return r, p

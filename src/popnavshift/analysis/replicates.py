@@ -1,0 +1,166 @@
+"""Replicates as a design axis: rates against seed sets, replicability and power.
+
+A *seed set* is one draw of a part's episodes (ids ``<episode>@s<k>``; the study
+seed's draw has no suffix); every cell gets 3 variants per seed set.
+
+* ``replicate_curve``: the headline tests (:func:`.evidence.test_comparisons`) on
+  the first 1, 2, … S seed sets (3, 6, … 3S variants per cell): how the observed
+  rate, its null and the excess move as the design grows.
+* ``replicability``: per seed set alone (3 variants per cell, the paper's design),
+  the chance that a reversal seen in one seed set recurs, in the same direction, in
+  another, beside the marginal reversal rate; for the observed pair and its null.
+* ``seed_sets_needed``: the seed sets a design needs so that an excess of a given
+  size is detected at one-sided level α with the given power, from the excess
+  interval at the largest design measured, assuming its width shrinks as 1/√S.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from itertools import permutations
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from ..episodes.specs import seed_set_of
+from .delay import cell_metrics, paired_delays
+from .evidence import N_BOOT, test_comparisons
+from .reversals import comparisons
+from .significance import LEVEL
+
+VARIANTS_PER_SEED_SET = 3
+POWER = 0.80
+ALPHA_ONE_SIDED = 0.05
+#: The smallest excess over the null worth detecting (rate units: 5 percentage points).
+MIN_EFFECT = 0.05
+
+
+def seed_sets(runs: pd.DataFrame, study_seed: int) -> pd.Series:
+    """The seed set of every run (aligned with ``runs``)."""
+    ids = runs["episode"].astype(str)
+    uniq = {e: seed_set_of(e, study_seed) for e in ids.unique()}
+    return ids.map(uniq).astype(np.int64)
+
+
+def _ordered_sets(runs: pd.DataFrame, study_seed: int) -> list[int]:
+    """Seed sets, the study's own first, then ascending."""
+    have = sorted(set(seed_sets(runs, study_seed)))
+    return sorted(have, key=lambda s: (s != study_seed, s))
+
+
+def replicate_curve(runs: pd.DataFrame, pedestrians: pd.DataFrame,
+                    designs: dict[str, tuple[list, list]], observed: Sequence[str], *,
+                    study_seed: int, seed: int = 0, n_boot: int = N_BOOT // 2,
+                    level: float = LEVEL,
+                    metrics: Sequence[str] = ("mean_delay", "worst_decile", "cvar90", "robot_time")
+                    ) -> pd.DataFrame:
+    """Headline rows (:func:`.evidence.test_comparisons`) on the first k seed sets, for
+    k = 1 … S; columns of the headline plus ``seed_sets`` and ``variants_per_cell``.
+    Resample k uses ``numpy.random.default_rng([seed, k])``."""
+    order = _ordered_sets(runs, study_seed)
+    run_sets = seed_sets(runs, study_seed)
+    ped_sets = seed_sets(pedestrians, study_seed)
+    frames = []
+    for k in range(1, len(order) + 1):
+        use = set(order[:k])
+        tested = test_comparisons(runs[run_sets.isin(use).to_numpy()],
+                                  pedestrians[ped_sets.isin(use).to_numpy()], designs, observed,
+                                  rng=np.random.default_rng([seed, k]), n_boot=n_boot,
+                                  level=level, metrics=metrics)
+        frames.append(tested.headline.assign(seed_sets=k,
+                                             variants_per_cell=VARIANTS_PER_SEED_SET * k))
+    return pd.concat(frames, ignore_index=True)
+
+
+def replicability(runs: pd.DataFrame, pedestrians: pd.DataFrame,
+                  designs: dict[str, tuple[list, list]], *, study_seed: int,
+                  metrics: Sequence[str] = ("robot_time", "mean_delay", "worst_decile")
+                  ) -> pd.DataFrame:
+    """Per (comparison, kind ∈ {observed, null}, metric): the marginal raw reversal rate
+    of one seed set and P(the reversal recurs in the same direction in another seed
+    set | it reversed in one and is comparable in the other), over ordered pairs of
+    distinct seed sets. Needs at least 2 seed sets (else empty)."""
+    sets = seed_sets(runs, study_seed)
+    psets = seed_sets(pedestrians, study_seed)
+    order = _ordered_sets(runs, study_seed)
+    if len(order) < 2:
+        return pd.DataFrame()
+    per_set = []
+    for s in order:
+        r = runs[(sets == s).to_numpy()]
+        cells = cell_metrics(r, paired_delays(pedestrians[(psets == s).to_numpy()]))
+        for label, (obs, nulls) in designs.items():
+            for kind, pairs in (("observed", obs), ("null", [p for n in nulls for p in n])):
+                c = comparisons(cells, pairs, metrics=metrics)
+                per_set.append(c.assign(seed_set=s, comparison=label, kind=kind))
+    allc = pd.concat(per_set, ignore_index=True)
+    key = ["comparison", "kind", "metric", "backend", "mapping", "cell", "pop_a", "pop_b",
+           "ctrl_1", "ctrl_2"]
+    allc["direction"] = np.where(allc["reversal"], allc["sign_a"], 0.0)
+    rows = []
+    for (label, kind, metric), g in allc.groupby(["comparison", "kind", "metric"], sort=False):
+        rev = g.pivot_table(index=key[3:], columns="seed_set", values="direction",
+                            aggfunc="first").reindex(columns=order)
+        comp = g.pivot_table(index=key[3:], columns="seed_set", values="comparable",
+                             aggfunc="first").reindex(columns=order)
+        d, c = rev.to_numpy(float), comp.fillna(False).to_numpy(bool)
+        recur = given = 0
+        for i, j in permutations(range(len(order)), 2):
+            seen = (d[:, i] != 0) & np.isfinite(d[:, i])
+            given += int((seen & c[:, j]).sum())
+            recur += int((seen & c[:, j] & (d[:, j] == d[:, i])).sum())
+        n_rev, n_comp = int((np.nan_to_num(d) != 0).sum()), int(c.sum())
+        rows.append({"comparison": label, "kind": kind, "metric": metric,
+                     "marginal": n_rev / n_comp if n_comp else np.nan,
+                     "recurrence": recur / given if given else np.nan,
+                     "reversals": n_rev, "comparable": n_comp, "recurred": recur,
+                     "opportunities": given, "seed_sets": len(order)})
+    return pd.DataFrame(rows)
+
+
+def seed_sets_needed(headline: pd.DataFrame, seed_sets_used: int, *,
+                     effect: float | None = None, min_effect: float = MIN_EFFECT,
+                     alpha: float = ALPHA_ONE_SIDED, power: float = POWER,
+                     ci_level: float = 0.95) -> pd.DataFrame:
+    """Per headline row: how many seed sets would decide it, and its verdict now.
+
+    The standard error of the excess at ``seed_sets_used`` is read off its interval
+    (width / (2 z)) and assumed to shrink as 1/√S (seed sets are independent draws of
+    the same cells). The effect δ to detect is ``effect`` if given, else the row's
+    observed excess where it is at least ``min_effect``, else ``min_effect`` (the
+    smallest excess worth detecting, in rate units). Then
+    S* = ⌈S (z_{1−α} + z_{power})² se² / δ²⌉ seed sets detect δ at one-sided level α
+    with the given power.
+
+    ``verdict``: ``beats the null`` (the interval excludes 0 from above and p ≤ α),
+    ``below the null`` (the interval lies below 0), ``no excess ≥ δ`` (the interval
+    lies below ``min_effect``: the data rule out an excess that large) or
+    ``undecided`` (more seed sets would decide: ``seed_sets_needed``).
+    """
+    z_ci = stats.norm.ppf(0.5 + ci_level / 2)
+    z = stats.norm.ppf(1 - alpha) + stats.norm.ppf(power)
+    out = headline.copy()
+    se = (out["ci_high"] - out["ci_low"]) / (2 * z_ci)
+    observed = out["excess"] >= min_effect
+    if effect is None:
+        delta = out["excess"].where(observed, min_effect)
+        out["effect_source"] = np.where(observed, "observed excess", "smallest of interest")
+    else:
+        delta = pd.Series(float(effect), index=out.index)
+        out["effect_source"] = "given"
+    with np.errstate(all="ignore"):
+        need = np.ceil(seed_sets_used * (z * se / delta) ** 2)
+    p = out["p_value"] if "p_value" in out else pd.Series(0.0, index=out.index)
+    beats = (out["ci_low"] > 0) & (p <= alpha)
+    below = out["ci_high"] < 0
+    small = out["ci_high"] < min_effect
+    out["verdict"] = np.select([beats, below, small], ["beats the null", "below the null",
+                                                      f"no excess ≥ {min_effect:g}"],
+                               "undecided")
+    out["effect"] = delta
+    out["se"] = se
+    out["seed_sets_needed"] = need.where(delta > 0)
+    out["decided"] = out["verdict"] != "undecided"
+    out["seed_sets_used"] = seed_sets_used
+    return out

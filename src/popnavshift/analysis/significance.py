@@ -1,0 +1,350 @@
+"""Paired significance of controller orderings, significant reversals and crossover tests.
+
+Pipeline: cell metrics + their paired episode bootstrap (:mod:`.resample`) →
+``orderings`` (per metric: every controller pair in every unit and population,
+its difference D = m(c₁) − m(c₂), a percentile interval and a significant sign)
+→ ``pair_counts`` (raw and significant reversals between population pairs, for
+the point estimate and every resample) and ``crossover_tests`` (Gail–Simon test
+of a qualitative interaction across populations, with Holm or BH control).
+
+* **Significant ordering**: the bootstrap interval of D at ``level`` (default 90 %)
+  excludes 0; otherwise the ordering counts as tied. With n episodes in the cell,
+  the interval is the wider of (a) Hesterberg's *expanded percentile* interval
+  (tails at Φ(−√(n/(n−1)) · t_{n−1, 1−α/2}) instead of α/2) and (b) the t-interval
+  D ± t_{n−1, 1−α/2} · √(n/(n−1)) · SE_boot. Both undo the plug-in variance's
+  (n−1)/n bias; (b) is what keeps small cells honest — with the paper's 3 variants
+  per cell a percentile interval spans only the 3 episodes and calls an ordering
+  significant whenever they agree in sign (25 % of the time under no difference);
+  (a) keeps the skew of tail metrics where n is large. One episode: no interval.
+* **Significant reversal**: two significant orderings of opposite sign under two
+  populations. The **significant rate** is significant reversals / comparisons
+  significant under both populations. The paper's **raw rate** (tie tolerance,
+  includes near-ties) is always reported beside it.
+* In resample b, an ordering is significant when the interval shifted to D_b,
+  [D_b − (D − lo), D_b + (hi − D)], excludes 0 (the interval's width is taken as
+  pivotal): intervals of rates then need one level of resampling, not two.
+
+Definitions, reasons and references: ``docs/analysis.md`` §6.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from itertools import combinations
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from .delay import CELL_KEY, UNIT
+from .resample import Design
+from .reversals import TOLERANCES, tie_sign
+
+LEVEL = 0.90  # coverage of an ordering's interval
+ALPHA = 0.05  # family-wise / false-discovery level of the crossover tests
+
+
+@dataclass
+class Orderings:
+    """Controller orderings of one metric on a (population × unit × controller pair) grid.
+
+    Point arrays are (P, U, C); ``boot`` is (B, P, U, C) float32 (the resampled
+    differences, every resample shared by all populations and controllers).
+    """
+
+    metric: str
+    populations: list[str]
+    units: pd.DataFrame  # UNIT columns (backend, mapping, cell), U rows
+    pairs: list[tuple[str, str]]  # controller pairs (sorted names), C of them
+    diff: np.ndarray
+    low: np.ndarray
+    high: np.ndarray
+    se: np.ndarray
+    sig: np.ndarray  # ±1 significant, 0 tied, NaN missing
+    boot: np.ndarray
+    level: float
+    tolerance: float
+    n_episodes: np.ndarray  # (U,) episodes in each unit's cell (the bootstrap's sample size)
+
+    def index(self, population: str) -> int:
+        return self.populations.index(population)
+
+    def table(self) -> pd.DataFrame:
+        """One row per (population, unit, controller pair): ``diff, low, high, se, sig,
+        sign`` (``sign`` = the paper's tolerance sign)."""
+        n_p, n_u, n_c = self.diff.shape
+        frame = self.units.iloc[np.tile(np.repeat(np.arange(n_u), n_c), n_p)]
+        out = frame.reset_index(drop=True)
+        out.insert(0, "metric", self.metric)
+        out["population"] = np.repeat(self.populations, n_u * n_c)
+        out["ctrl_1"] = [self.pairs[i][0] for i in np.tile(np.arange(n_c), n_p * n_u)]
+        out["ctrl_2"] = [self.pairs[i][1] for i in np.tile(np.arange(n_c), n_p * n_u)]
+        for name in ("diff", "low", "high", "se", "sig"):
+            out[name] = getattr(self, name).ravel()
+        out["sign"] = tie_sign(out["diff"].to_numpy(float), self.tolerance)
+        return out
+
+
+def _grid(rows: pd.DataFrame, populations: list[str], units: pd.DataFrame,
+          controllers: list[str]) -> np.ndarray:
+    """(P, U, K) row index of each (population, unit, controller) in ``rows``; −1 if absent."""
+    pos = np.full((len(populations), len(units), len(controllers)), -1, dtype=np.int64)
+    u_index = pd.MultiIndex.from_frame(units)
+    u = u_index.get_indexer(pd.MultiIndex.from_frame(rows[list(UNIT)]))
+    p = pd.Index(populations).get_indexer(rows["population"])
+    k = pd.Index(controllers).get_indexer(rows["controller"])
+    ok = (u >= 0) & (p >= 0) & (k >= 0)
+    pos[p[ok], u[ok], k[ok]] = np.flatnonzero(ok)
+    return pos
+
+
+def orderings(cells: pd.DataFrame, design: Design, boot: dict[str, np.ndarray], metric: str, *,
+              level: float = LEVEL, tolerance: float | None = None,
+              populations: Sequence[str] | None = None) -> Orderings:
+    """Every controller ordering of ``metric`` with its paired-bootstrap interval.
+
+    Args:
+      cells: cell metrics (the point estimates), rows aligned with ``design.rows``.
+      design, boot: the design and :func:`popnavshift.analysis.resample.resampled_metrics`
+        under B resamples (B ≥ 2).
+      level: interval coverage; an ordering is significant when its interval
+        excludes 0.
+      tolerance: the paper's tie tolerance for the raw sign (default: TOLERANCES).
+      populations: the populations to lay out (default: all in ``cells``, sorted).
+    """
+    key = list(CELL_KEY)
+    if len(cells) != len(design.rows) or not (
+            cells[key].to_numpy() == design.rows[key].to_numpy()).all():
+        raise ValueError("cells and design rows differ: build both from the same runs")
+    pops = sorted(cells["population"].unique()) if populations is None else list(populations)
+    ctrl = sorted(cells["controller"].unique())
+    units = cells[list(UNIT)].drop_duplicates().sort_values(list(UNIT)).reset_index(drop=True)
+    pos = _grid(cells, pops, units, ctrl)
+    pairs = list(combinations(range(len(ctrl)), 2))
+    point = np.append(cells[metric].to_numpy(float), np.nan)  # index −1 → NaN
+    resampled = np.concatenate([boot[metric], np.full((boot[metric].shape[0], 1), np.nan)],
+                               axis=1)
+    i1 = pos[:, :, [a for a, _ in pairs]]
+    i2 = pos[:, :, [b for _, b in pairs]]
+    diff = point[i1] - point[i2]
+    n_b = resampled.shape[0]
+    d_boot = np.empty((n_b, *diff.shape), dtype=np.float32)
+    low, high, se = (np.full(diff.shape, np.nan) for _ in range(3))
+    per_cell = design.episodes.groupby("cell").size()
+    n_eps = units["cell"].map(per_cell).fillna(0).to_numpy(np.int64)
+    for p in range(len(pops)):  # one population at a time bounds the temporaries
+        d = resampled[:, i1[p]] - resampled[:, i2[p]]
+        d_boot[:, p] = d
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN slices → NaN
+            se[p] = np.nanstd(d, axis=0, dtype=np.float64)
+        for n in np.unique(n_eps):
+            u = n_eps == n
+            if n < 2:
+                continue  # one episode: no interval, never significant
+            tail = expanded_tail(level, int(n))
+            lo, hi = nan_quantiles(d[:, u], (tail, 1 - tail))
+            half = stats.t.ppf(0.5 + level / 2, n - 1) * np.sqrt(n / (n - 1)) * se[p][u]
+            low[p][u] = np.fmin(lo, diff[p][u] - half)
+            high[p][u] = np.fmax(hi, diff[p][u] + half)
+    sig = np.where(low > 0, 1.0, np.where(high < 0, -1.0, 0.0))
+    sig[np.isnan(diff) | np.isnan(low)] = np.nan
+    tol = TOLERANCES[metric] if tolerance is None else tolerance
+    return Orderings(metric, pops, units, [(ctrl[a], ctrl[b]) for a, b in pairs], diff,
+                     low, high, se, sig, d_boot, level, tol, n_eps)
+
+
+def expanded_tail(level: float, n: int) -> float:
+    """The lower tail probability of Hesterberg's expanded percentile interval at ``level``
+    for a sample of ``n`` ≥ 2 (Hesterberg 2015, §5): Φ(−√(n/(n−1)) · t_{n−1, (1+level)/2})."""
+    t = stats.t.ppf(0.5 + level / 2, n - 1)
+    return float(stats.norm.cdf(-np.sqrt(n / (n - 1)) * t))
+
+
+def nan_quantiles(x: np.ndarray, qs: Sequence[float]) -> list[np.ndarray]:
+    """Quantiles along axis 0 ignoring NaN (numpy's default linear interpolation), as
+    ``np.nanquantile`` but one sort for all columns; NaN for an all-NaN column."""
+    s = np.sort(x, axis=0)  # NaN last
+    n = np.isfinite(s).sum(axis=0)
+    out = []
+    for q in qs:
+        pos = q * np.maximum(n - 1, 0)
+        lo = np.floor(pos).astype(np.int64)
+        hi = np.minimum(lo + 1, np.maximum(n - 1, 0))
+        frac = pos - lo
+        a = np.take_along_axis(s, lo[None], axis=0)[0].astype(np.float64)
+        b = np.take_along_axis(s, hi[None], axis=0)[0].astype(np.float64)
+        v = a + frac * (b - a)
+        out.append(np.where(n > 0, v, np.nan))
+    return out
+
+
+# --- reversals between population pairs -----------------------------------------------------
+
+
+@dataclass(frozen=True)
+class PairCounts:
+    """Reversal counts over a set of population pairs.
+
+    Point counts are per unit (U,) so they can be pooled or clustered; resampled
+    counts are per resample (B,), summed over units and pairs.
+    """
+
+    raw_reversals: np.ndarray
+    raw_comparable: np.ndarray
+    sig_reversals: np.ndarray
+    sig_comparable: np.ndarray
+    boot_raw_reversals: np.ndarray
+    boot_raw_comparable: np.ndarray
+    boot_sig_reversals: np.ndarray
+    boot_sig_comparable: np.ndarray
+
+    def rate(self, rule: str) -> float:
+        """Pooled rate Σ reversals / Σ comparable of ``rule`` ("raw" or "sig")."""
+        r, c = getattr(self, f"{rule}_reversals").sum(), getattr(self, f"{rule}_comparable").sum()
+        return float(r / c) if c > 0 else float("nan")
+
+    def boot_rate(self, rule: str) -> np.ndarray:
+        """(B,) the pooled rate in every resample (NaN without a comparable comparison)."""
+        r = getattr(self, f"boot_{rule}_reversals").astype(float)
+        c = getattr(self, f"boot_{rule}_comparable").astype(float)
+        return np.divide(r, c, out=np.full_like(r, np.nan), where=c > 0)
+
+
+def _boot_sig(o: Orderings, i: int) -> np.ndarray:
+    """(B, U, C) significant signs of population ``i`` in every resample (pivot rule)."""
+    d = o.boot[:, i]
+    up = d > (o.diff[i] - o.low[i])
+    down = d < (o.diff[i] - o.high[i])
+    s = np.where(up, 1, np.where(down, -1, 0)).astype(np.int8)
+    s[:, np.isnan(o.sig[i])] = 0
+    return s
+
+
+def _boot_raw(o: Orderings, i: int) -> np.ndarray:
+    d = o.boot[:, i].astype(float)
+    s = tie_sign(d, o.tolerance)
+    return np.nan_to_num(s, nan=0.0).astype(np.int8)
+
+
+def pair_counts(o: Orderings, pairs: Sequence[tuple[str, str]]) -> PairCounts:
+    """Raw and significant reversal counts of ``o`` between each population pair in
+    ``pairs``, pooled over the pairs: per unit (point) and per resample."""
+    n_b, _, n_u, _ = o.boot.shape
+    point = {k: np.zeros(n_u, np.int64) for k in ("rr", "rc", "sr", "sc")}
+    boot = {k: np.zeros(n_b, np.int64) for k in ("rr", "rc", "sr", "sc")}
+    raw = tie_sign(o.diff, o.tolerance)
+    cache: dict[tuple[str, int], np.ndarray] = {}
+
+    def signs(kind: str, i: int) -> np.ndarray:
+        if (kind, i) not in cache:
+            cache[(kind, i)] = _boot_sig(o, i) if kind == "sig" else _boot_raw(o, i)
+        return cache[(kind, i)]
+
+    for a, b in pairs:
+        ia, ib = o.index(a), o.index(b)
+        for kind, point_signs, rk, ck in (("raw", raw, "rr", "rc"), ("sig", o.sig, "sr", "sc")):
+            prod = point_signs[ia] * point_signs[ib]
+            point[rk] += (prod == -1).sum(axis=1)
+            point[ck] += (np.abs(prod) == 1).sum(axis=1)
+            bprod = signs(kind, ia).astype(np.int16) * signs(kind, ib)
+            boot[rk] += (bprod == -1).sum(axis=(1, 2))
+            boot[ck] += (bprod != 0).sum(axis=(1, 2))
+    return PairCounts(point["rr"], point["rc"], point["sr"], point["sc"],
+                      boot["rr"], boot["rc"], boot["sr"], boot["sc"])
+
+
+# --- crossover (qualitative interaction) tests ---------------------------------------------
+
+
+def gail_simon(diff: np.ndarray, se: np.ndarray, df: np.ndarray | None = None) -> np.ndarray:
+    """Gail–Simon (1985) p-value of a qualitative interaction, per row.
+
+    ``diff`` and ``se`` are (n, q): a treatment difference and its standard error
+    in q subgroups (here: one controller difference under q populations); NaN
+    subgroups are dropped. With z = d/s, Q⁻ = Σ z² [d > 0], Q⁺ = Σ z² [d < 0],
+    Q = min(Q⁻, Q⁺), and p = Σ_{h=1}^{q−1} P(χ²_h > Q) · Binom(h; q − 1, ½), the
+    least-favourable null distribution (no crossover). NaN with fewer than 2
+    subgroups. A zero SE with a non-zero difference is an infinitely precise sign.
+    ``df`` (n,), when given, are the degrees of freedom of each row's d/s: each is
+    mapped to the normal quantile of its t probability, so small samples are not
+    read as normal.
+    """
+    d, s = np.asarray(diff, float), np.asarray(se, float)
+    ok = np.isfinite(d) & np.isfinite(s)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(ok, np.where(d == 0, 0.0, d / s), 0.0)
+        if df is not None:
+            dfs = np.broadcast_to(np.asarray(df, float)[:, None], z.shape)
+            good = np.isfinite(z) & (dfs >= 1)
+            z = np.where(good, stats.norm.ppf(stats.t.cdf(np.where(good, z, 0.0),
+                                                           np.maximum(dfs, 1))), z)
+            ok &= dfs >= 1
+            z = np.where(ok, z, 0.0)
+    z2 = np.nan_to_num(z**2, nan=0.0, posinf=np.inf)
+    q_minus = np.where(ok & (d > 0), z2, 0.0).sum(axis=1)
+    q_plus = np.where(ok & (d < 0), z2, 0.0).sum(axis=1)
+    q = np.minimum(q_minus, q_plus)
+    k = ok.sum(axis=1)
+    p = np.full(len(d), np.nan)
+    for n in np.unique(k[k >= 2]):
+        rows = k == n
+        h = np.arange(1, n)
+        weights = stats.binom.pmf(h, n - 1, 0.5)
+        p[rows] = (stats.chi2.sf(q[rows, None], h[None, :]) * weights).sum(axis=1)
+    return p
+
+
+def holm(p: np.ndarray) -> np.ndarray:
+    """Holm's step-down adjusted p-values (family-wise error control); NaN kept."""
+    p = np.asarray(p, float)
+    out = np.full_like(p, np.nan)
+    ok = np.flatnonzero(np.isfinite(p))
+    order = ok[np.argsort(p[ok], kind="stable")]
+    m = len(order)
+    adj = np.maximum.accumulate((m - np.arange(m)) * p[order])
+    out[order] = np.minimum(adj, 1.0)
+    return out
+
+
+def bh(p: np.ndarray) -> np.ndarray:
+    """Benjamini–Hochberg adjusted p-values (false-discovery-rate control); NaN kept."""
+    p = np.asarray(p, float)
+    out = np.full_like(p, np.nan)
+    ok = np.isfinite(p)
+    if ok.any():
+        out[ok] = stats.false_discovery_control(p[ok], method="bh")
+    return out
+
+
+ADJUST = {"holm": holm, "bh": bh}
+
+
+def crossover_tests(o: Orderings, populations: Sequence[str], *, method: str = "bh",
+                    alpha: float = ALPHA) -> pd.DataFrame:
+    """Gail–Simon test per (unit, controller pair) across ``populations``, adjusted over
+    the table's comparisons with ``method`` (``"holm"`` or ``"bh"``). Each subgroup's
+    bootstrap SE is scaled by √(n/(n−1)) and its z read through a t with n − 1
+    degrees of freedom (n = episodes in the cell).
+
+    Returns one row per (unit, controller pair): UNIT columns, ``ctrl_1, ctrl_2``,
+    ``n_populations``, ``p``, ``p_adj`` and ``crossover`` (p_adj ≤ ``alpha``).
+    """
+    idx = [o.index(p) for p in populations]
+    d = np.moveaxis(o.diff[idx], 0, -1).reshape(-1, len(idx))
+    s = np.moveaxis(o.se[idx], 0, -1).reshape(-1, len(idx))
+    n_u, n_c = o.diff.shape[1:]
+    n = np.repeat(o.n_episodes, n_c).astype(float)  # episodes behind each row's estimates
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = s * np.sqrt(n / (n - 1))[:, None]  # undo the plug-in variance's bias
+    p = gail_simon(d, s, df=n - 1)
+    out = o.units.iloc[np.repeat(np.arange(n_u), n_c)].reset_index(drop=True)
+    out["ctrl_1"] = [o.pairs[i][0] for i in np.tile(np.arange(n_c), n_u)]
+    out["ctrl_2"] = [o.pairs[i][1] for i in np.tile(np.arange(n_c), n_u)]
+    out["n_populations"] = np.isfinite(d).sum(axis=1)
+    out["p"] = p
+    out["p_adj"] = ADJUST[method](p)
+    out["crossover"] = out["p_adj"] <= alpha
+    return out

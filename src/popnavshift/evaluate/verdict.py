@@ -1,0 +1,195 @@
+"""The card's verdict: is the controller's standing robust to the population, beyond noise?
+
+Pipeline (pure): runs + pedestrians → the paired episode bootstrap
+(:mod:`popnavshift.analysis.resample`) → per metric, every controller ordering with
+its interval (:func:`popnavshift.analysis.significance.orderings`) → for the
+evaluated controller against each baseline:
+
+* **ranks**: its rank per population among the compared controllers, with the rank
+  interval over resamples (:func:`popnavshift.analysis.evidence.controller_ranks`);
+* **wins / losses**: per (population, baseline, metric), the cells where it is
+  significantly better (lower), significantly worse, or tied;
+* **significant reversals**: (cell, population pair) where its ordering against a
+  baseline is significant under both populations with opposite signs, beside the
+  raw (tie-tolerance) count — descriptive: over hundreds of comparisons, noise alone
+  makes a few;
+* **crossovers**: per (cell, baseline, metric), the Gail–Simon test of a qualitative
+  interaction across the populations, Benjamini–Hochberg-adjusted over the card's
+  whole table — the test the verdict rests on;
+* **safety**: the share of its runs ending in a pedestrian collision, a world
+  collision or a controller error, against a threshold;
+* **verdict**: ``fails every run`` > ``unsafe`` > ``population-sensitive`` (a
+  crossover survives multiplicity control) > ``robust in this study`` (none, with at
+  least half of its orderings decided) > ``inconclusive`` (too few decided: the seed
+  sets that would decide the median undecided ordering are given).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from itertools import combinations
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from ..analysis.delay import cell_metrics, paired_delays
+from ..analysis.evidence import controller_ranks
+from ..analysis.resample import build_design, episode_weights, resampled_metrics
+from ..analysis.significance import ALPHA, LEVEL, bh, crossover_tests, orderings
+from ..populations.build import POPULATIONS
+
+VERDICT_METRICS: tuple[str, ...] = ("robot_time", "mean_delay", "cvar90")
+SAFETY_OUTCOMES: tuple[str, ...] = ("pedestrian_collision", "world_collision",
+                                    "controller_error")
+SAFETY_THRESHOLD = 0.05  # share of the controller's runs
+DECIDED_SHARE = 0.5  # orderings that must be significant before "robust" can be said
+
+
+@dataclass
+class Verdict:
+    label: str
+    text: str
+    safety: list[str] = field(default_factory=list)
+    seed_sets_to_decide: float = float("nan")
+
+
+@dataclass
+class Evidence:
+    """The card's significance tables (see the module doc)."""
+
+    ranks: pd.DataFrame  # metric, population, controller, value, rank, rank_low, rank_high, …
+    wins: pd.DataFrame  # metric, baseline, population, better, worse, tied
+    reversals: pd.DataFrame  # metric, baseline, sig_reversals, sig_comparable, raw_…, decided…
+    crossovers: pd.DataFrame  # metric, baseline, cell…, p, p_adj (BH over the table), crossover
+    undecided_seed_sets: float  # median over undecided orderings (NaN if none)
+
+
+def population_order(names) -> list[str]:
+    """Built-in populations in SPEC order, then any other name sorted: a fixed order."""
+    given = set(names)
+    return [p for p in POPULATIONS if p in given] + sorted(given - set(POPULATIONS))
+
+
+def _oriented(table: pd.DataFrame, controller: str) -> pd.DataFrame:
+    """Rows comparing ``controller`` with another, with diff/sig/sign as controller − other."""
+    mine = (table["ctrl_1"] == controller) | (table["ctrl_2"] == controller)
+    t = table[mine].copy()
+    flip = (t["ctrl_2"] == controller).to_numpy()
+    t["baseline"] = np.where(flip, t["ctrl_1"], t["ctrl_2"])
+    for col in ("diff", "sig", "sign"):
+        t[col] = np.where(flip, -t[col], t[col])
+    return t
+
+
+def card_evidence(runs: pd.DataFrame, pedestrians: pd.DataFrame, controller: str,
+                  baselines: tuple[str, ...], *, rng: np.random.Generator, n_boot: int = 1000,
+                  level: float = LEVEL, seed_sets: int = 1) -> Evidence:
+    """Ranks, wins/losses and significant reversals of ``controller`` (module doc)."""
+    paired = paired_delays(pedestrians)
+    cells = cell_metrics(runs, paired)
+    design = build_design(runs, paired)
+    weights = episode_weights(design, n_boot, rng)
+    pops = population_order(cells["population"].unique())
+    z = stats.norm.ppf(0.5 + level / 2)
+    ranks, wins, revs, undecided, cross = [], [], [], [], []
+    for metric in VERDICT_METRICS:
+        boot = resampled_metrics(design, weights, (metric,))
+        o = orderings(cells, design, boot, metric, level=level, populations=pops)
+        t = _oriented(o.table(), controller)
+        t = t[t["baseline"].isin(baselines) & t["diff"].notna()]
+        ranks.append(controller_ranks(cells, boot[metric], metric, pops, level=level))
+        g = t.groupby(["baseline", "population"], sort=False)["sig"]
+        w = pd.DataFrame({"better": g.apply(lambda s: int((s == -1).sum())),
+                          "worse": g.apply(lambda s: int((s == 1).sum())),
+                          "tied": g.apply(lambda s: int((s == 0).sum()))}).reset_index()
+        wins.append(w.assign(metric=metric))
+        for b in baselines:
+            counts = _reversal_counts(t[t["baseline"] == b])
+            revs.append({"metric": metric, "baseline": b, **counts})
+        c = crossover_tests(o, pops)
+        mine = (c["ctrl_1"] == controller) | (c["ctrl_2"] == controller)
+        c = c[mine].assign(metric=metric, baseline=np.where(c.loc[mine, "ctrl_1"] == controller,
+                                                            c.loc[mine, "ctrl_2"],
+                                                            c.loc[mine, "ctrl_1"]))
+        cross.append(c[c["baseline"].isin(baselines)])
+        open_ = t[(t["sig"] == 0) & (t["diff"] != 0) & (t["se"] > 0)]
+        undecided.append(seed_sets * (z * open_["se"] / open_["diff"].abs()) ** 2)
+    need = pd.concat(undecided)
+    tests = pd.concat(cross, ignore_index=True)
+    tests["p_adj"] = bh(tests["p"].to_numpy(float))  # over the card's whole table
+    tests["crossover"] = tests["p_adj"] <= ALPHA
+    return Evidence(pd.concat(ranks, ignore_index=True), pd.concat(wins, ignore_index=True),
+                    pd.DataFrame(revs), tests,
+                    float(np.ceil(need.median())) if len(need) else float("nan"))
+
+
+def _reversal_counts(t: pd.DataFrame) -> dict[str, int]:
+    """Significant and raw reversals of one (baseline, metric) over population pairs."""
+    key = ["backend", "mapping", "cell"]
+    sig = t.pivot_table(index=key, columns="population", values="sig", aggfunc="first")
+    raw = t.pivot_table(index=key, columns="population", values="sign", aggfunc="first")
+    out = {"sig_reversals": 0, "sig_comparable": 0, "raw_reversals": 0, "raw_comparable": 0}
+    for a, b in combinations(sig.columns, 2):
+        for name, wide in (("sig", sig), ("raw", raw)):
+            prod = (wide[a] * wide[b]).to_numpy(float)
+            out[f"{name}_reversals"] += int((prod == -1).sum())
+            out[f"{name}_comparable"] += int((np.abs(prod) == 1).sum())
+    out["orderings"] = int(t["sig"].notna().sum())
+    out["decided"] = int((t["sig"].abs() == 1).sum())
+    return out
+
+
+def safety_lines(runs: pd.DataFrame, controller: str,
+                 threshold: float = SAFETY_THRESHOLD) -> list[str]:
+    """One line per safety outcome whose share of the controller's runs exceeds ``threshold``."""
+    own = runs[runs["controller"] == controller]
+    lines = []
+    for outcome in SAFETY_OUTCOMES:
+        share = float((own["outcome"] == outcome).mean()) if len(own) else 0.0
+        if share > threshold:
+            lines.append(f"{outcome.replace('_', ' ')}s in {100 * share:.1f}% of its "
+                         f"{len(own)} runs (threshold {100 * threshold:.0f}%)")
+    return lines
+
+
+def verdict(runs: pd.DataFrame, controller: str, ev: Evidence, *, seed_sets: int = 1,
+            threshold: float = SAFETY_THRESHOLD) -> Verdict:
+    """The card's one-line verdict and its explanation (module doc)."""
+    own = runs[runs["controller"] == controller]
+    safety = safety_lines(runs, controller, threshold)
+    r = ev.reversals
+    sig, sig_n = int(r["sig_reversals"].sum()), int(r["sig_comparable"].sum())
+    raw, raw_n = int(r["raw_reversals"].sum()), int(r["raw_comparable"].sum())
+    decided = float(r["decided"].sum() / r["orderings"].sum()) if r["orderings"].sum() else 0.0
+    counts = (f"{sig} significant reversal{'s' if sig != 1 else ''} in {sig_n} comparisons "
+              f"significant under both populations (raw rule incl. near-ties: {raw}/{raw_n}); "
+              f"{100 * decided:.0f}% of its orderings against the baselines are significant")
+    if len(own) == 0 or not (own["outcome"] == "success").any():
+        return Verdict("fails every run", f"It reached the goal in none of its {len(own)} runs: "
+                       "its rankings mean nothing.", safety, ev.undecided_seed_sets)
+    if safety:
+        return Verdict("unsafe", "Safety first: " + "; ".join(safety) + f". Rankings: {counts}.",
+                       safety, ev.undecided_seed_sets)
+    x = ev.crossovers
+    found = x[x["crossover"]]
+    tests = (f"{len(found)} of {int(x['p'].notna().sum())} crossover tests (Gail–Simon, one per "
+             "cell, baseline and metric across the populations) survive Benjamini–Hochberg "
+             f"control at {ALPHA:g}")
+    counts = f"{tests}; {counts}"
+    if len(found):
+        top = found.groupby(["baseline", "metric"]).size().sort_values(ascending=False)
+        (b, m), n = top.index[0], int(top.iloc[0])
+        return Verdict("population-sensitive",
+                       f"Its ranking changes with the population beyond noise: {counts}. Most "
+                       f"against {b} on {m.replace('_', ' ')} ({n} cells).", safety,
+                       ev.undecided_seed_sets)
+    if decided >= DECIDED_SHARE:
+        return Verdict("robust in this study", f"No crossover beyond noise: {counts}.", safety,
+                       ev.undecided_seed_sets)
+    need = ev.undecided_seed_sets
+    advice = (f" About {int(need)} episode seed sets per cell (now {seed_sets}) would decide the "
+              "median undecided ordering: add `seeds:` to the study's main part."
+              if np.isfinite(need) else "")
+    return Verdict("inconclusive", f"Too few orderings are decided to call it robust: {counts}."
+                   + advice, safety, need)

@@ -1,0 +1,111 @@
+"""Null populations: the study's design with the population effect removed.
+
+A reversal rate means little on its own: controller differences within a cell are
+noisy, so two populations reverse some rankings even when they do not differ at
+all. A *null population* is built so that the observed comparison and its null
+are computed at the same design (same episodes, slots, controllers and
+backends); the analysis (:mod:`popnavshift.analysis.nulls`) reports every
+headline rate as its excess over its null. Nulls are ordinary populations: they
+are declared in the study file, planned, cached and resumed like any other run.
+
+* **Swap null of the matched pair** (``matched_swap<k>_a`` / ``_b``, k = 1 … P):
+  the same persona ids as ``matched_base``/``matched_deadline`` (so the same
+  persona in every slot), and each persona's base and deadline profiles are
+  assigned to the two arms by a seeded fair coin: arm ``a`` takes the deadline
+  profile where the coin is 1, arm ``b`` the other one. The arms differ by exactly
+  as much as the matched pair does, persona by persona, but in no systematic
+  direction.
+* **Size-matched null** (``<population>_sized<k>``): a seeded random subset of
+  ``mixed`` (baseline profiles) with as many members as ``<population>``; the
+  null of a cohort pair (P, Q) is (P_sized<k>, Q_sized<k>). ``mixed`` is its own
+  size-matched subset, so it has no sized population.
+* **Split halves** (``<population>_half_a`` / ``_half_b``, in :mod:`.build`) stay
+  the persona-sampling diagnostic of the noise floor.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..hashing import stable_seed
+
+SWAP_PREFIX = "matched_swap"
+SIZED_TAG = "_sized"
+#: The population every size-matched subset is drawn from (and its own null).
+SIZED_SOURCE = "mixed"
+NULL_KINDS: tuple[str, ...] = ("swap", "sized")
+ARMS: tuple[str, str] = ("a", "b")
+
+_SWAP = re.compile(rf"^{SWAP_PREFIX}(\d+)_([ab])$")
+_SIZED = re.compile(rf"^(.+){SIZED_TAG}(\d+)$")
+
+
+@dataclass(frozen=True)
+class NullName:
+    """A parsed null population name: its kind, replicate k (1-based) and either the
+    swap arm (``a``/``b``) or the population it stands in for (sized)."""
+
+    kind: str
+    replicate: int
+    arm: str = ""
+    of: str = ""
+
+
+def swap_name(replicate: int, arm: str) -> str:
+    """``matched_swap<k>_<arm>``: arm ``a`` or ``b`` of swap permutation ``k``."""
+    return f"{SWAP_PREFIX}{int(replicate)}_{arm}"
+
+
+def sized_name(population: str, replicate: int) -> str:
+    """``<population>_sized<k>``: replicate ``k`` of the size-matched subset of mixed."""
+    return f"{population}{SIZED_TAG}{int(replicate)}"
+
+
+def parse_null(name: str) -> NullName | None:
+    """The null a population name declares, or None for an ordinary population."""
+    m = _SWAP.match(name)
+    if m and int(m.group(1)) >= 1:
+        return NullName("swap", int(m.group(1)), arm=m.group(2))
+    m = _SIZED.match(name)
+    if m and int(m.group(2)) >= 1:
+        return NullName("sized", int(m.group(2)), of=m.group(1))
+    return None
+
+
+def swap_variants(ids: list[str], replicate: int, arm: str, seed: int) -> list[str]:
+    """Each of ``ids`` (sorted persona ids of the matched pair) → ``"deadline"`` or
+    ``"baseline"`` in one arm of swap permutation ``replicate``.
+
+    One fair coin per persona, drawn from ``stable_seed("swap", seed, replicate)``
+    in id order: arm ``a`` takes the deadline profile where the coin is 1, arm ``b``
+    where it is 0, so the two arms are complementary.
+    """
+    rng = np.random.default_rng(stable_seed("swap", seed, int(replicate)))
+    coins = rng.integers(0, 2, size=len(ids)).astype(bool)
+    deadline = coins if arm == "a" else ~coins
+    return ["deadline" if d else "baseline" for d in deadline]
+
+
+def sized_subset(source_ids: list[str], size: int, of: str, replicate: int,
+                 seed: int) -> list[str]:
+    """A seeded random subset (without replacement) of ``size`` of ``source_ids``, sorted.
+
+    The draw depends on the population it stands in for and the replicate, so the
+    subsets of two cohorts of one replicate are independent.
+    """
+    ids = np.sort(np.asarray(source_ids, dtype=str))
+    rng = np.random.default_rng(stable_seed("sized", seed, of, int(replicate)))
+    take = min(int(size), len(ids))
+    return sorted(ids[rng.choice(len(ids), size=take, replace=False)].tolist())
+
+
+def null_populations(kind: str, replicates: int, populations: tuple[str, ...]) -> tuple[str, ...]:
+    """The population names of a null design: ``replicates`` swap permutations (both
+    arms) or size-matched subsets of each of ``populations`` but ``mixed``."""
+    if kind == "swap":
+        return tuple(swap_name(k, arm) for k in range(1, replicates + 1) for arm in ARMS)
+    return tuple(sized_name(p, k) for k in range(1, replicates + 1) for p in populations
+                 if p != SIZED_SOURCE)

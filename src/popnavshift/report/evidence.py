@@ -1,0 +1,131 @@
+"""The report's evidence tables: do rankings change with the population beyond noise?
+
+``evidence_tables(study)`` selects, from a study folder, the runs of each headline
+comparison at its own design — the matched pair with its swap null over every seed
+set they share, the populations of the ``main`` part with their size-matched null
+on the main grid — and computes with :mod:`popnavshift.analysis` (pure functions):
+
+* ``evidence_headline``: observed vs null rates per (comparison, metric, rule),
+  excess with interval and permutation p-value;
+* ``evidence_null_rates``: every null replicate's rate;
+* ``evidence_crossovers``: Gail–Simon crossover tests per comparison, BH-adjusted;
+* ``evidence_orderings``: every observed controller ordering with its interval;
+* ``evidence_ranks``: each controller's rank per population with rank intervals;
+* ``evidence_curve``, ``evidence_replicability``, ``evidence_power``: the matched
+  comparison against its number of seed sets;
+* ``evidence_findings``: the paper's findings under the significance rule
+  (:mod:`popnavshift.analysis.surviving`), and ``evidence_burden``: "burden reverses
+  more than robot time" against the nulls.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pandas as pd
+
+from ..analysis.evidence import complete_design, test_comparisons
+from ..analysis.nulls import burden_beyond_time, design_populations, headline_designs
+from ..analysis.replicates import replicability, replicate_curve, seed_sets, seed_sets_needed
+from ..analysis.significance import LEVEL
+from ..analysis.surviving import surviving_findings
+from ..populations.build import HALF_SUFFIXES
+from ..populations.nulls import parse_null
+from ..tables import NO_ROBOT
+
+if TYPE_CHECKING:
+    from .build import StudyFolder
+
+PREFIX = "evidence_"
+
+
+def _main_part(study: StudyFolder) -> tuple[list[str], list[str], list[str]] | None:
+    """(populations, backends, mappings) of the study's main part, from the manifest."""
+    from ..engine.study import study_from_dict
+
+    cfg = study.manifest.get("study_config")
+    if not cfg or not cfg.get("parts"):
+        return None
+    spec = study_from_dict(cfg, "manifest study_config")
+    part = spec.parts["main"] if "main" in spec.parts else next(iter(spec.parts.values()))
+    return list(part.populations), list(part.backends), list(part.mappings)
+
+
+def _is_observed(name: str) -> bool:
+    return parse_null(name) is None and not name.endswith(HALF_SUFFIXES)
+
+
+def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000,
+                    level: float = LEVEL) -> tuple[dict[str, pd.DataFrame], dict[str, str]]:
+    """Every evidence table of the study (see the module doc) and why any is missing."""
+    main = _main_part(study)
+    if main is None:
+        return {}, {"evidence": "the manifest names no study part"}
+    populations, backends, mappings = main
+    runs = study.runs[study.runs["backend"].isin(backends)
+                      & study.runs["mapping"].isin(mappings)]
+    peds = study.pedestrians[study.pedestrians["backend"].isin(backends)
+                             & study.pedestrians["mapping"].isin(mappings)]
+    present = list(runs["population"].unique())
+    observed = [p for p in populations if p in present and _is_observed(p)]
+    designs = headline_designs(present, observed)
+    if not designs:
+        return {}, {"evidence": "the study has neither the matched pair nor two populations"}
+    seed = int(study.manifest.get("seeds", {}).get("study", 0))
+    frames: dict[str, list[pd.DataFrame]] = {}
+    missing: dict[str, str] = {}
+    for i, (label, (obs_pairs, nulls)) in enumerate(designs.items()):
+        pops = design_populations(obs_pairs, nulls)
+        r, p = complete_design(runs, peds, pops)
+        if (r["controller"] == NO_ROBOT).all():
+            missing[label] = f"the {label} design has no robot runs"
+            continue
+        if r.empty:
+            missing[label] = f"no episode has runs of every population of the {label} design"
+            continue
+        obs_pops = list(dict.fromkeys(x for pair in obs_pairs for x in pair))
+        one = {label: (obs_pairs, nulls)}
+        tested = test_comparisons(r, p, one, obs_pops, rng=np.random.default_rng([rng_seed, i]),
+                                  n_boot=n_boot, level=level)
+        n_sets = int(seed_sets(r, seed).nunique())
+        head = tested.headline.assign(null="swap" if label == "matched" else "sized",
+                                      seed_sets=n_sets, variants_per_cell=3 * n_sets)
+        burden = pd.concat([burden_beyond_time(head, tested.null_rates, tested.boot_excess,
+                                               burden=m) for m in ("mean_delay", "cvar90")],
+                           ignore_index=True)
+        add = {"headline": head, "null_rates": tested.null_rates, "burden": burden,
+               "crossovers": tested.crossovers,
+               "orderings": tested.orderings.assign(comparison=label),
+               "ranks": tested.ranks.assign(comparison=label)}
+        if head["n_null"].max() > 0:
+            add["power"] = seed_sets_needed(head, n_sets)
+        else:
+            missing[f"power_{label}"] = (f"the study ran no null of the {label} comparison "
+                                         f"({'a swap' if label == 'matched' else 'a sized'} "
+                                         "null part)")
+        if label == "matched":
+            add.update(_replicates(r, p, one, obs_pops, seed=seed, rng_seed=rng_seed,
+                                   n_boot=n_boot, level=level, missing=missing))
+        if label == "all_pairs":
+            add["findings"] = surviving_findings(r[r["population"].isin(obs_pops)],
+                                                 p[p["population"].isin(obs_pops)],
+                                                 rng=np.random.default_rng([rng_seed, 99]),
+                                                 n_boot=n_boot, level=level)
+        for k, v in add.items():
+            frames.setdefault(k, []).append(v)
+    tables = {PREFIX + k: pd.concat(v, ignore_index=True) for k, v in frames.items()}
+    return tables, missing
+
+
+def _replicates(runs: pd.DataFrame, peds: pd.DataFrame, design: dict, observed: list[str], *,
+                seed: int, rng_seed: int, n_boot: int, level: float,
+                missing: dict[str, str]) -> dict[str, pd.DataFrame]:
+    """The matched comparison against its seed sets: rates curve and replicability."""
+    if int(seed_sets(runs, seed).nunique()) < 2:
+        missing["curve"] = ("the matched pair was run on one episode seed set: add `seeds` to "
+                            "its part to see rates against replicates")
+        return {}
+    curve = replicate_curve(runs, peds, design, observed, study_seed=seed, seed=rng_seed,
+                            n_boot=max(200, n_boot // 2), level=level)
+    return {"curve": curve, "replicability": replicability(runs, peds, design, study_seed=seed)}

@@ -1,0 +1,179 @@
+"""Paired significance, nulls and power on synthetic tables where the answer is known."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats
+
+from popnavshift.analysis import cell_key, cell_metrics, paired_delays
+from popnavshift.analysis.delay import cvar, worst_decile
+from popnavshift.analysis.evidence import test_comparisons as run_tests
+from popnavshift.analysis.nulls import headline_designs, permutation_p
+from popnavshift.analysis.replicates import seed_sets_needed
+from popnavshift.analysis.resample import build_design, episode_weights, resampled_metrics
+from popnavshift.analysis.significance import bh, gail_simon, holm, orderings
+from popnavshift.populations.nulls import swap_name
+from synth_study import crossover, no_effect, synthetic_cells, synthetic_study
+
+MATCHED = ("matched_base", "matched_deadline")
+CROSS_CELLS = (0, 1, 2, 3, 4, 5)
+
+
+def swap_study(n_null: int, *, inject: float, seed: int, **kw):
+    """The matched pair (controller a shifted by ∓inject in CROSS_CELLS) and ``n_null``
+    swap permutations, whose arms mix the two directions and so carry no shift."""
+    pops = {"matched_base": crossover(CROSS_CELLS, inject, -1.0),
+            "matched_deadline": crossover(CROSS_CELLS, inject, +1.0)}
+    for k in range(1, n_null + 1):
+        pops[swap_name(k, "a")] = no_effect
+        pops[swap_name(k, "b")] = no_effect
+    return synthetic_study(pops, seed=seed, **kw)
+
+
+def analyse_matched(runs, peds, *, n_boot=200, seed=0, metrics=("mean_delay", "robot_time")):
+    pops = list(runs["population"].unique())
+    designs = headline_designs(pops, list(MATCHED))
+    return run_tests(runs, peds, designs, list(MATCHED), rng=np.random.default_rng(seed),
+                     n_boot=n_boot, metrics=metrics)
+
+
+def head(t, metric, rule="sig"):
+    h = t.headline
+    return h[(h["comparison"] == "matched") & (h["metric"] == metric)
+             & (h["rule"] == rule)].iloc[0]
+
+
+# --- the episode bootstrap ---------------------------------------------------------------
+
+
+def test_unit_weights_reproduce_the_cell_metrics():
+    runs, peds = synthetic_study({"P": no_effect, "Q": no_effect}, n_cells=4, variants=3)
+    paired = paired_delays(peds)
+    cells = cell_metrics(runs, paired)
+    design = build_design(runs, paired)
+    ones = np.ones((1, design.n_columns), dtype=np.int32)
+    got = resampled_metrics(design, ones)
+    for m in ("robot_time", "mean_delay", "worst_decile", "cvar90"):
+        np.testing.assert_allclose(got[m][0], cells[m].to_numpy(float), rtol=1e-5, err_msg=m)
+
+
+def test_episode_weights_resample_within_cells_and_follow_the_seed():
+    runs, peds = synthetic_study({"P": no_effect}, n_cells=5, variants=4)
+    design = build_design(runs, paired_delays(peds))
+    a = episode_weights(design, 30, np.random.default_rng(1))
+    b = episode_weights(design, 30, np.random.default_rng(1))
+    c = episode_weights(design, 30, np.random.default_rng(2))
+    np.testing.assert_array_equal(a, b)
+    assert (a != c).any()
+    for _, cols in design.episodes.groupby("cell")["column"]:
+        assert (a[:, cols.to_numpy()].sum(axis=1) == len(cols)).all()  # n episodes per cell
+
+
+# --- orderings, significant reversals and the swap null ---------------------------------
+
+
+def test_an_injected_crossover_is_found_and_beats_the_swap_null():
+    runs, peds = swap_study(19, inject=1.5, seed=3)
+    t = analyse_matched(runs, peds)
+    row = head(t, "mean_delay")
+    assert row["n_null"] == 19
+    assert row["observed"] > 0.2  # the injected cells reverse significantly
+    assert row["p_value"] == pytest.approx(1 / 20)  # beats every one of the 19 permutations
+    assert row["ci_low"] > 0  # excess over the null, interval above 0
+    cross = t.crossovers[(t.crossovers["metric"] == "mean_delay")
+                         & (t.crossovers["comparison"] == "matched")]
+    found = cross[cross["crossover"]]
+    # every crossover found is of controller a, in an injected cell
+    assert len(found) >= 3
+    assert found[["ctrl_1", "ctrl_2"]].apply(lambda r: "a" in set(r), axis=1).all()
+    injected = {cell_key(*c) for i, c in enumerate(synthetic_cells(12)) if i in CROSS_CELLS}
+    assert set(found["cell"]) <= injected
+
+
+def test_pure_noise_gives_uniform_p_values_and_no_significant_excess():
+    p_values, covered = [], 0
+    n = 30
+    for seed in range(n):
+        runs, peds = swap_study(9, inject=0.0, seed=100 + seed, n_cells=6, variants=3, n_peds=5)
+        row = head(analyse_matched(runs, peds, n_boot=60, seed=seed, metrics=("mean_delay",)),
+                   "mean_delay", rule="raw")
+        p_values.append(row["p_value"])
+        covered += bool(row["ci_low"] <= 0 <= row["ci_high"])
+    p = np.array(p_values)
+    # the permutation p of 9 exchangeable nulls is uniform on {0.1, 0.2, …, 1} (ties
+    # make it conservative): mean ≈ 0.55, P(p ≤ 0.1) ≤ 0.1
+    assert 0.4 < p.mean() < 0.75
+    assert (p <= 0.1).mean() <= 0.2
+    assert stats.kstest(p, "uniform").pvalue > 0.01
+    assert covered >= 0.8 * n
+
+
+def test_orderings_are_significant_only_for_real_differences():
+    big = {"P": crossover(range(12), 3.0, +1.0)}
+    runs, peds = synthetic_study(big, variants=6)
+    paired = paired_delays(peds)
+    cells = cell_metrics(runs, paired)
+    design = build_design(runs, paired)
+    boot = resampled_metrics(design, episode_weights(design, 200, np.random.default_rng(0)))
+    o = orderings(cells, design, boot, "mean_delay")
+    t = o.table()
+    with_a = t[(t["ctrl_1"] == "a")]
+    assert (with_a["sig"] == 1).mean() > 0.9  # a is 3 s slower: (a − b), (a − c) > 0
+    assert (with_a["low"] > 0).mean() > 0.9
+
+
+# --- the crossover test and multiplicity control -------------------------------------------
+
+
+def test_gail_simon_known_values():
+    # two subgroups of opposite sign, z = ±2: Q = 4, p = ½ P(χ²₁ > 4)
+    p = gail_simon(np.array([[2.0, -2.0], [2.0, 2.0], [1.0, np.nan]]),
+                   np.array([[1.0, 1.0], [1.0, 1.0], [1.0, 1.0]]))
+    assert p[0] == pytest.approx(0.5 * stats.chi2.sf(4.0, 1))
+    assert p[1] == pytest.approx(0.5)  # no crossover: Q = 0, the point mass 1 − 2^−(k−1)
+    assert np.isnan(p[2])  # one subgroup cannot cross
+    # Gail & Simon (1985), Table 1: c = 2.71 is the 5 % critical value for k = 2
+    assert gail_simon(np.array([[1.0, -1.0]]), np.full((1, 2), 1 / np.sqrt(2.71)))[0] \
+        == pytest.approx(0.05, abs=5e-4)
+
+
+def test_holm_and_bh_by_hand():
+    p = np.array([0.01, 0.04, 0.03, 0.2, np.nan])
+    np.testing.assert_allclose(holm(p)[:4], [0.04, 0.09, 0.09, 0.2])
+    np.testing.assert_allclose(bh(p)[:4], [0.04, 0.16 / 3, 0.16 / 3, 0.2])
+    assert np.isnan(holm(p)[4]) and np.isnan(bh(p)[4])
+
+
+def test_permutation_p_counts_ties_against_the_observed():
+    assert permutation_p(0.3, np.array([0.1, 0.3, 0.5, 0.2])) == pytest.approx(3 / 5)
+    assert permutation_p(0.9, np.zeros(19)) == pytest.approx(1 / 20)
+
+
+# --- tail statistic and power --------------------------------------------------------------
+
+
+def test_cvar_by_hand_and_equal_to_the_worst_decile_at_multiples_of_ten():
+    x = np.arange(1.0, 21.0)  # 20 records: the tail is the 2 largest
+    assert cvar(x) == pytest.approx(19.5) == worst_decile(x)
+    y = np.arange(1.0, 16.0)  # 15 records: 1.5 records, the 15 and half of the 14
+    assert cvar(y) == pytest.approx((15 + 0.5 * 14) / 1.5)
+    assert worst_decile(y) == pytest.approx(14.5)  # ⌈1.5⌉ = 2 records
+    assert cvar(np.array([3.0])) == 3.0 and np.isnan(cvar(np.array([])))
+
+
+def test_seed_sets_needed_scales_with_the_square_of_the_noise_to_effect_ratio():
+    h = pd.DataFrame({"excess": [0.08, 0.08, -0.01, 0.0], "ci_low": [-0.02, 0.01, -0.05, -0.02],
+                      "ci_high": [0.18, 0.15, 0.07, 0.02], "p_value": [0.2, 0.05, 0.7, 0.5]})
+    out = seed_sets_needed(h, 3)
+    se = (h["ci_high"] - h["ci_low"]) / (2 * stats.norm.ppf(0.975))
+    z = stats.norm.ppf(0.95) + stats.norm.ppf(0.8)
+    assert out["seed_sets_needed"].iloc[0] == np.ceil(3 * (z * se.iloc[0] / 0.08) ** 2)
+    # an excess below the smallest of interest: the seed sets to detect 5 points
+    assert out["effect"].iloc[2] == 0.05
+    assert out["seed_sets_needed"].iloc[2] == np.ceil(3 * (z * se.iloc[2] / 0.05) ** 2)
+    assert list(out["verdict"]) == ["undecided", "beats the null", "undecided",
+                                    "no excess ≥ 0.05"]
+    wider = seed_sets_needed(h.assign(ci_high=h["ci_high"] + 0.06, ci_low=h["ci_low"] - 0.06), 3)
+    assert wider["seed_sets_needed"].iloc[0] > out["seed_sets_needed"].iloc[0]

@@ -1,0 +1,75 @@
+"""The robustness card's verdict on synthetic tables where the answer is known."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from popnavshift.evaluate.card import card_tables, render_html
+from popnavshift.evaluate.verdict import card_evidence, population_order, verdict
+from synth_study import crossover, no_effect, synthetic_study
+
+BASELINES = ("b", "c")
+
+
+def evidence(runs, peds, **kw):
+    return card_evidence(runs, peds, "a", BASELINES, rng=np.random.default_rng(0), n_boot=150,
+                         **kw)
+
+
+def meta(runs):
+    return {"study": "synthetic", "part": "main", "check": "skipped", "reused": 0,
+            "executed": 0, "n_runs": int((runs["controller"] == "a").sum()),
+            "n_errors": int((runs["outcome"] == "controller_error").sum()), "n_cells": 12,
+            "n_populations": runs["population"].nunique(), "backends": "orca",
+            "mappings": "A", "replay_note": "", "n_boot": 150, "seed": 0,
+            "base_folder": "-", "seed_sets": 1}
+
+
+def test_a_crossing_controller_is_population_sensitive():
+    runs, peds = synthetic_study({"P": crossover(range(6), 2.0, -1.0),
+                                  "Q": crossover(range(6), 2.0, +1.0)}, variants=6)
+    v = verdict(runs, "a", evidence(runs, peds))
+    assert v.label == "population-sensitive"
+    assert "significant reversal" in v.text
+
+
+def test_no_effect_and_clear_differences_read_robust():
+    runs, peds = synthetic_study({"P": no_effect, "Q": no_effect}, variants=8, noise=0.1)
+    ev = evidence(runs, peds)
+    assert ev.reversals["sig_reversals"].sum() == 0
+    assert verdict(runs, "a", ev).label == "robust in this study"
+
+
+def test_noisy_small_designs_are_inconclusive_with_advice():
+    runs, peds = synthetic_study({"P": no_effect, "Q": no_effect}, variants=2, noise=3.0,
+                                 n_peds=3)
+    ev = evidence(runs, peds)
+    v = verdict(runs, "a", ev, seed_sets=1)
+    assert v.label == "inconclusive"
+    assert np.isfinite(v.seed_sets_to_decide) and v.seed_sets_to_decide > 1
+    assert f"About {int(v.seed_sets_to_decide)} episode seed sets" in v.text
+
+
+def test_a_crashing_controller_gets_a_safety_banner():
+    runs, peds = synthetic_study({"P": no_effect, "Q": no_effect}, variants=4)
+    crash = (runs["controller"] == "a") & (runs.index % 5 == 0)  # 20% of its runs raise
+    runs.loc[crash, "outcome"] = "controller_error"
+    card = card_tables(runs, peds, "a", BASELINES, rng=np.random.default_rng(0), n_boot=100)
+    assert card.verdict.label == "unsafe"
+    assert any("controller errors" in line for line in card.verdict.safety)
+    page = render_html(card, meta(runs), "card.png", None)
+    assert 'class="danger"' in page and "Verdict: unsafe" in page
+    assert "robust in this study" not in page
+
+
+def test_a_controller_that_fails_every_run_never_reads_robust():
+    runs, peds = synthetic_study({"P": no_effect, "Q": no_effect}, variants=4, noise=0.1)
+    runs.loc[runs["controller"] == "a", "outcome"] = "timeout"
+    v = verdict(runs, "a", evidence(runs, peds))
+    assert v.label == "fails every run"
+
+
+@pytest.mark.parametrize("given", [["mixed", "zeta", "homogeneous", "alpha", "matched_base"]])
+def test_populations_come_in_a_fixed_order(given):
+    assert population_order(given) == ["homogeneous", "mixed", "matched_base", "alpha", "zeta"]

@@ -1,0 +1,93 @@
+"""Null populations: swap permutations of the matched pair and size-matched subsets of mixed."""
+
+from __future__ import annotations
+
+import pytest
+
+from popnavshift.engine.study import study_from_dict
+from popnavshift.errors import ConfigError
+from popnavshift.personas.synthetic import generate_personas
+from popnavshift.personas.variants import matched_ids
+from popnavshift.populations.build import POPULATIONS, membership
+from popnavshift.populations.nulls import (
+    null_populations,
+    parse_null,
+    sized_name,
+    sized_subset,
+    swap_name,
+    swap_variants,
+)
+from popnavshift.profiles.mappings import build_profiles
+from popnavshift.responses.collect import collect_responses
+from popnavshift.responses.rule import RuleRespondent
+
+
+@pytest.fixture(scope="module")
+def members():
+    personas = generate_personas(300, seed=4)
+    ids = matched_ids(personas, 80, seed=0)
+    responses, _, _ = collect_responses(personas, RuleRespondent(), ids)
+    prof = build_profiles(responses, personas, "A")
+    nulls = (*null_populations("swap", 3, ()), *null_populations("sized", 2, POPULATIONS))
+    return membership(personas, responses, prof, ids, populations=POPULATIONS + nulls, seed=0)
+
+
+def test_swap_arms_hold_the_matched_personas_with_complementary_profiles(members):
+    base = members[members["population"] == "matched_base"]
+    for k in (1, 2, 3):
+        a = members[members["population"] == swap_name(k, "a")].set_index("persona_id")
+        b = members[members["population"] == swap_name(k, "b")].set_index("persona_id")
+        # same ids in the same member order: the same persona in every slot
+        assert list(a.index) == list(b.index) == list(base["persona_id"])
+        assert (a["variant"] != b["variant"]).all()  # each persona's two profiles split
+        share = (a["variant"] == "deadline").mean()
+        assert 0.3 < share < 0.7  # a fair coin per persona
+    arm1 = members[members["population"] == swap_name(1, "a")]["variant"].to_numpy()
+    arm2 = members[members["population"] == swap_name(2, "a")]["variant"].to_numpy()
+    assert (arm1 != arm2).any()  # permutations differ
+
+
+def test_swap_coins_follow_the_seed():
+    ids = [f"p{i:03d}" for i in range(50)]
+    assert swap_variants(ids, 1, "a", 0) == swap_variants(ids, 1, "a", 0)
+    assert swap_variants(ids, 1, "a", 0) != swap_variants(ids, 1, "a", 1)
+
+
+def test_sized_subsets_match_sizes_and_come_from_mixed(members):
+    size = members.groupby("population").size()
+    mixed = set(members.loc[members["population"] == "mixed", "persona_id"])
+    for pop in POPULATIONS:
+        if pop == "mixed":
+            assert sized_name(pop, 1) not in size  # mixed is its own size-matched subset
+            continue
+        for k in (1, 2):
+            sub = members[members["population"] == sized_name(pop, k)]
+            assert len(sub) == size[pop]
+            assert set(sub["persona_id"]) <= mixed and (sub["variant"] == "baseline").all()
+    a1 = members.loc[members["population"] == sized_name("high_caution", 1), "persona_id"]
+    a2 = members.loc[members["population"] == sized_name("high_caution", 2), "persona_id"]
+    assert set(a1) != set(a2)
+
+
+def test_sized_subset_is_deterministic_and_sorted():
+    src = [f"p{i}" for i in range(40)]
+    one = sized_subset(src, 10, "high_caution", 1, seed=0)
+    assert one == sized_subset(src, 10, "high_caution", 1, seed=0) == sorted(one)
+    assert one != sized_subset(src, 10, "low_robot_trust", 1, seed=0)
+
+
+def test_null_names_parse_and_unknown_ones_do_not():
+    assert parse_null("matched_swap12_b").replicate == 12
+    assert parse_null("high_caution_sized3").of == "high_caution"
+    assert parse_null("matched_swap0_a") is None and parse_null("mixed") is None
+
+
+def test_a_swap_null_part_stands_for_the_matched_pair():
+    base = {"name": "t", "parts": {"n": {"null_design": {"kind": "swap", "replicates": 4}}}}
+    part = study_from_dict(base, "t").parts["n"]
+    assert part.planned_populations == tuple(swap_name(k, a) for k in range(1, 5)
+                                             for a in "ab")
+    bad = {"name": "t", "parts": {"n": {"populations": ["mixed"],
+                                        "null_design": {"kind": "swap"}}}}
+    with pytest.raises(ConfigError, match="swap null stands in for the matched pair"):
+        study_from_dict(bad, "t")
