@@ -175,5 +175,43 @@ def test_seed_sets_needed_scales_with_the_square_of_the_noise_to_effect_ratio():
     assert out["seed_sets_needed"].iloc[2] == np.ceil(3 * (z * se.iloc[2] / 0.05) ** 2)
     assert list(out["verdict"]) == ["undecided", "beats the null", "undecided",
                                     "no excess ≥ 0.05"]
+    few = seed_sets_needed(h.assign(n_null=9, p_value=0.1), 3)  # p ≥ 1/10 whatever happens
+    assert few["verdict"].iloc[1].startswith("above the null (too few null replicates")
     wider = seed_sets_needed(h.assign(ci_high=h["ci_high"] + 0.06, ci_low=h["ci_low"] - 0.06), 3)
     assert wider["seed_sets_needed"].iloc[0] > out["seed_sets_needed"].iloc[0]
+
+
+def sized_study(n_null: int, *, inject: float, seed: int, **kw):
+    """Three cohorts (P and Q cross over on controller a by ±inject in CROSS_CELLS, mixed
+    does not) and ``n_null`` size-matched replicates of P and Q with no effect."""
+    pops = {"mixed": no_effect, "high_caution": crossover(CROSS_CELLS, inject, -1.0),
+            "low_robot_trust": crossover(CROSS_CELLS, inject, +1.0)}
+    for k in range(1, n_null + 1):
+        pops[f"high_caution_sized{k}"] = no_effect
+        pops[f"low_robot_trust_sized{k}"] = no_effect
+    return synthetic_study(pops, seed=seed, **kw)
+
+
+def sized_headline(runs, peds, *, n_boot=150, seed=0, rule="sig"):
+    obs = ["mixed", "high_caution", "low_robot_trust"]
+    designs = {"all_pairs": headline_designs(list(runs["population"].unique()), obs)["all_pairs"]}
+    t = run_tests(runs, peds, designs, obs, rng=np.random.default_rng(seed), n_boot=n_boot,
+                  metrics=("mean_delay",))
+    h = t.headline
+    return h[h["rule"] == rule].iloc[0]
+
+
+def test_cohort_pairs_with_a_true_crossover_beat_the_size_matched_null():
+    runs, peds = sized_study(19, inject=1.5, seed=5)
+    row = sized_headline(runs, peds)
+    assert row["n_null"] == 19
+    assert row["p_value"] == pytest.approx(1 / 20) and row["ci_low"] > 0
+
+
+def test_cohort_pairs_without_an_effect_do_not_beat_the_size_matched_null():
+    p_values = []
+    for seed in range(20):
+        runs, peds = sized_study(9, inject=0.0, seed=300 + seed, n_cells=6, variants=3, n_peds=5)
+        p_values.append(sized_headline(runs, peds, n_boot=60, seed=seed, rule="raw")["p_value"])
+    p = np.array(p_values)
+    assert 0.35 < p.mean() < 0.8 and (p <= 0.1).mean() <= 0.25

@@ -73,3 +73,20 @@ def test_a_controller_that_fails_every_run_never_reads_robust():
 @pytest.mark.parametrize("given", [["mixed", "zeta", "homogeneous", "alpha", "matched_base"]])
 def test_populations_come_in_a_fixed_order(given):
     assert population_order(given) == ["homogeneous", "mixed", "matched_base", "alpha", "zeta"]
+
+
+def test_the_card_uses_the_study_make_run_built(tmp_path, monkeypatch):
+    import json
+    from pathlib import Path
+
+    from popnavshift.cli.evaluate import _baseline_study
+
+    monkeypatch.chdir(tmp_path)
+    s, folder = _baseline_study(None)
+    assert s.name == "quick" and folder == Path("study-quick")  # nothing built yet
+    cfg = {"name": "built", "seed": 3, "parts": {"main": {"populations": ["mixed"]}}}
+    (tmp_path / "study").mkdir()
+    (tmp_path / "study" / "manifest.json").write_text(json.dumps({"study_config": cfg}))
+    s, folder = _baseline_study(None)
+    assert (s.name, s.seed, folder) == ("built", 3, Path("study"))
+    assert _baseline_study("quick")[0].name == "quick"  # an explicit name wins

@@ -155,10 +155,12 @@ def test_page_loads_without_errors_and_shows_figures_and_tables(page, tmp_path):
                  and e["params"]["entry"]["level"] in ("error", "warning")]
     assert problems == []
     assert dom["scripts"] == 0
-    assert len(dom["images"]) == 7
+    assert len(dom["images"]) == 8  # Table I, Fig. 2–4, τ, trade-off and the null figure
     assert all(i["data"] and i["ok"] and i["shown"] > 300 for i in dom["images"]), dom["images"]
     assert len(dom["tables"]) >= 10 and min(dom["tables"]) >= 1
-    assert dom["sections"][:3] == ["populations", "checks", "summary"]
+    # the answer first, then the populations and the checks before any score
+    assert dom["sections"][:7] == ["answer", "ranks", "surviving", "replicates", "populations",
+                                   "checks", "summary"]
     assert "NOT a language model" in dom["respondent"]
 
 
@@ -170,7 +172,7 @@ def test_dump_dom_has_no_console_lines_and_a_screenshot_is_not_blank(page, tmp_p
                            page.as_uri()], capture_output=True, text=True, timeout=TIMEOUT)
     assert dump.returncode == 0, dump.stderr[-2000:]
     assert [ln for ln in dump.stderr.splitlines() if ":CONSOLE" in ln] == []
-    assert dump.stdout.count('src="data:image/png;base64,') == 7
+    assert dump.stdout.count('src="data:image/png;base64,') == 8
     assert "Table I" in dump.stdout and dump.stdout.count("<tr>") > 40
     shot = tmp_path / "report.png"
     subprocess.run([*common, f"--screenshot={shot}", "--window-size=1280,4000", page.as_uri()],

@@ -134,6 +134,8 @@ def seed_sets_needed(headline: pd.DataFrame, seed_sets_used: int, *,
     with the given power.
 
     ``verdict``: ``beats the null`` (the interval excludes 0 from above and p ≤ α),
+    ``above the null (too few null replicates …)`` (the interval is above 0 but with P
+    replicates p cannot reach α: 1/(1 + P) > α),
     ``below the null`` (the interval lies below 0), ``no excess ≥ δ`` (the interval
     lies below ``min_effect``: the data rule out an excess that large) or
     ``undecided`` (more seed sets would decide: ``seed_sets_needed``).
@@ -152,12 +154,15 @@ def seed_sets_needed(headline: pd.DataFrame, seed_sets_used: int, *,
     with np.errstate(all="ignore"):
         need = np.ceil(seed_sets_used * (z * se / delta) ** 2)
     p = out["p_value"] if "p_value" in out else pd.Series(0.0, index=out.index)
+    n_null = out["n_null"] if "n_null" in out else pd.Series(np.inf, index=out.index)
     beats = (out["ci_low"] > 0) & (p <= alpha)
+    coarse = (out["ci_low"] > 0) & (1.0 / (1.0 + n_null) > alpha)  # p cannot reach alpha
     below = out["ci_high"] < 0
     small = out["ci_high"] < min_effect
-    out["verdict"] = np.select([beats, below, small], ["beats the null", "below the null",
-                                                      f"no excess ≥ {min_effect:g}"],
-                               "undecided")
+    out["verdict"] = np.select(
+        [beats, coarse, below, small],
+        ["beats the null", "above the null (too few null replicates for p ≤ 0.05)",
+         "below the null", f"no excess ≥ {min_effect:g}"], "undecided")
     out["effect"] = delta
     out["se"] = se
     out["seed_sets_needed"] = need.where(delta > 0)

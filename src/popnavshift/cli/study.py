@@ -64,8 +64,9 @@ def plan(
     console.print("'distinct' is what a run executes: parts share identical runs.")
     if advice is None:
         console.print(f"power: no estimate yet ({escape(str(pilot))} has no report). Run a "
-                      "pilot, e.g. `popnavshift run quick`, then `popnavshift plan "
-                      f"{escape(study or 'paper')} --from study-quick`.", highlight=False)
+                      "pilot, e.g. `popnavshift run pilot` (the matched pair and its swap null "
+                      "on 2 seed sets), then `popnavshift plan "
+                      f"{escape(study or 'paper')} --from study-pilot`.", highlight=False)
         return
     p = Table("comparison", "metric", "rule", "excess", "effect to detect", "seed sets used",
               "seed sets needed", "verdict now", title=f"power (from {pilot})")
