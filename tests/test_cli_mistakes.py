@@ -325,8 +325,9 @@ def test_a_second_run_on_a_locked_folder_names_the_holder(study):
     from popnavshift.engine.lock import study_lock
 
     with study_lock(study):
-        proc = rerun(study)
-        assert_one_line_error(proc, "in use", f"pid {os.getpid()}")
+        assert_one_line_error(rerun(study), "in use", f"pid {os.getpid()}")
+        for stage in ("personas", "probe", "profiles", "populations"):
+            assert_one_line_error(cli(stage, "--out", str(study)), "in use")
     assert rerun(study).returncode == 0  # released
 
 

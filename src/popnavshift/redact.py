@@ -17,7 +17,7 @@ MASK = "***"
 _SECRETS: set[str] = set()
 _LOCK = threading.Lock()
 #: ``Bearer <token>`` (any token) and ``sk-…`` keys (OpenAI, Anthropic, most proxies)
-_TOKEN_SHAPES = re.compile(r"(?i)\bbearer\s+[^\s\"',;]+|\bsk-[A-Za-z0-9_\-]{6,}")
+_TOKEN_SHAPES = re.compile(r"(?i)\bbearer\s+[^\s\"',;]+|\bsk-[A-Za-z0-9_\-]{16,}")
 #: shorter strings are not masked (they would garble ordinary words)
 _MIN_SECRET = 6
 

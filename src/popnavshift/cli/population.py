@@ -10,6 +10,7 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
+from ..engine.lock import study_lock
 from ..errors import ConfigError
 from ..progress import console
 from . import Out, app, finite_range, folder, say
@@ -69,9 +70,10 @@ def personas(
 
     target = out if out.suffix == ".parquet" else out / "personas.parquet"
     study_folder = folder(target.parent)
-    df = run_personas(
-        study_folder, _settings(source=source, n=n, seed=seed, missing=missing), target
-    )
+    with study_lock(study_folder):
+        df = run_personas(
+            study_folder, _settings(source=source, n=n, seed=seed, missing=missing), target
+        )
     console.print(f"[green]{len(df)} personas[/] → {say(target)}")
 
 
@@ -137,7 +139,6 @@ def probe(
     pressure set to Deadline. Network respondents cache in OUT/cache/llm.sqlite,
     so a second run makes no calls. Invalid records are listed, never dropped.
     """
-    from ..engine.lock import study_lock
     from ..pipeline import run_responses
 
     out = folder(out)
@@ -181,7 +182,8 @@ def profiles(
 
     out = folder(out)
     maps = tuple(mapping) if mapping else ("A", "B", "C", "D")
-    df = run_profiles(out, _settings(mappings=maps))
+    with study_lock(out):
+        df = run_profiles(out, _settings(mappings=maps))
     console.print(
         f"[green]{len(df)} profiles[/] (mappings {say(', '.join(maps))}) → "
         f"{say(out / 'profiles.parquet')}"
@@ -200,7 +202,8 @@ def populations(
     out = folder(out)
     profiles_path = out / "profiles.parquet"
     maps = _mappings_in(profiles_path)
-    table = run_populations(out, _settings(matched_n=matched_n, seed=seed, mappings=maps))
+    with study_lock(out):
+        table = run_populations(out, _settings(matched_n=matched_n, seed=seed, mappings=maps))
     print_sizes(table)
     console.print(f"→ {say(out / 'populations.parquet')}, figures in {say(out / 'figures')}")
 
