@@ -94,7 +94,8 @@ RESPONSES = declare(
         Column("persona_id", "str"),
         Column("variant", "str"),
         Column("respondent", "str"),
-        Column("model", "str"),
+        Column("model", "str"),  # the model asked for
+        Column("served_model", "str", nullable=True),  # the model that answered, as served
         Column("probe_set", "str"),
         *_cols("str", ACTION_COLUMNS),
         *_cols("float", Q_COLUMNS),
