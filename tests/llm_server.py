@@ -7,7 +7,11 @@ It speaks both wire formats the LLM respondents use:
 * Gemini generateContent: ``POST /v1beta/models/{model}:generateContent`` →
   ``{"candidates": [{"content": {"parts": [{"text": ...}]}}], "usageMetadata": {...}}``
 
-Every request is recorded (path, headers, JSON body). Replies come from a FIFO
+``GET /v1/models`` (the readiness check) answers from its own FIFO
+(:meth:`LLMServer.enqueue_models`), else 200 with a model list; those requests are
+counted in ``model_checks``, not in ``requests``.
+
+Every POST request is recorded (path, headers, JSON body). Replies come from a FIFO
 script (:meth:`LLMServer.enqueue`), then from a ``responder`` callable, then
 default to a valid answer. A :class:`Reply` is format-agnostic: the server wraps
 its ``text`` in the envelope of the path that was called.
@@ -67,6 +71,7 @@ class Reply:
     usage: tuple[int, int] = (100, 20)  # prompt, completion tokens
     finish: str = "stop"
     raw: bytes | None = None
+    model: str | None = None  # the served model the envelope reports
 
 
 # Named failure modes used across the tests.
@@ -122,6 +127,8 @@ class LLMServer(ThreadingHTTPServer):
         super().__init__(("127.0.0.1", 0), _Handler)
         self.requests: list[Recorded] = []
         self.script: deque[Reply] = deque()
+        self.models_script: deque[Reply] = deque()
+        self.model_checks = 0
         self.responder: Callable[[Recorded], Reply] | None = None
         self.in_flight = 0
         self.max_in_flight = 0
@@ -142,6 +149,16 @@ class LLMServer(ThreadingHTTPServer):
     def enqueue(self, *replies: Reply) -> None:
         with self.lock:
             self.script.extend(replies)
+
+    def enqueue_models(self, *replies: Reply) -> None:
+        """Script the replies of ``GET /v1/models`` (a status, or ``raw`` bytes)."""
+        with self.lock:
+            self.models_script.extend(replies)
+
+    def next_models_reply(self) -> Reply:
+        with self.lock:
+            self.model_checks += 1
+            return self.models_script.popleft() if self.models_script else Reply()
 
     def next_reply(self, rec: Recorded) -> Reply:
         with self.lock:
@@ -167,6 +184,15 @@ class _Handler(BaseHTTPRequestHandler):
 
     def log_message(self, format: str, *args: Any) -> None:  # keep test output clean
         pass
+
+    def do_GET(self) -> None:  # noqa: N802 (http.server naming)
+        reply = self.server.next_models_reply()
+        if reply.delay:
+            time.sleep(reply.delay)
+        if reply.raw is None and reply.status == 200:
+            reply = Reply(raw=json.dumps(
+                {"object": "list", "data": [{"id": "test-model", "object": "model"}]}).encode())
+        self._send(reply, gemini=False)
 
     def do_POST(self) -> None:  # noqa: N802 (http.server naming)
         length = int(self.headers.get("Content-Length", 0))
@@ -209,6 +235,7 @@ def _openai(text: str, reply: Reply) -> dict[str, Any]:
     p, c = reply.usage
     return {
         "id": "chatcmpl-test", "object": "chat.completion",
+        **({"model": reply.model} if reply.model else {}),
         "choices": [{"index": 0, "finish_reason": reply.finish,
                      "message": {"role": "assistant", "content": text}}],
         "usage": {"prompt_tokens": p, "completion_tokens": c, "total_tokens": p + c},
@@ -223,7 +250,7 @@ def _gemini(text: str, reply: Reply) -> dict[str, Any]:
                         "finishReason": finish, "index": 0}],
         "usageMetadata": {"promptTokenCount": p, "candidatesTokenCount": c,
                           "totalTokenCount": p + c},
-        "modelVersion": "test",
+        "modelVersion": reply.model or "test",
     }
 
 

@@ -11,6 +11,7 @@ import pytest
 from llm_server import (
     Reply,
     make_requests,
+    malformed,
     rate_limited,
     serve,
     server_error,
@@ -77,7 +78,7 @@ def test_request_body_headers_and_answer(server, tmp_path):
 
 
 def test_invalid_content_is_reasked_then_capped(server, tmp_path):
-    server.enqueue(truncated(), wrong_enum(), wrong_enum())
+    server.enqueue(malformed(), wrong_enum(), wrong_enum())
     [ans] = make(server, tmp_path).answer_all(make_requests(1))
     assert ans.answer is None
     assert ans.error.startswith("invalid after 3 attempts")
@@ -90,7 +91,15 @@ def test_invalid_content_is_reasked_then_capped(server, tmp_path):
         assert cache.count() == 0
         errors = [f["error"] for f in cache.failures()]
         assert len(errors) == 3
-        assert "finish_reason=MAX_TOKENS" in errors[0]
+
+
+def test_max_output_tokens_is_sent_and_doubled_after_a_cut_reply(server, tmp_path):
+    server.enqueue(truncated(), Reply(model="gemini-test-001"))
+    [ans] = make(server, tmp_path, max_tokens=256).answer_all(make_requests(1))
+    assert ans.answer == valid_answer() and ans.served_model == "gemini-test-001"
+    limits = [r.body["generationConfig"]["maxOutputTokens"] for r in server.requests]
+    assert limits == [256, 512]
+    assert len(server.requests[1].body["contents"]) == 1  # sent again, not re-asked
 
 
 def test_sdk_retries_are_off_and_ours_are_counted(server):

@@ -90,7 +90,7 @@ def test_fenced_json_is_accepted_without_reask(server):
     assert (ans.calls, ans.attempts) == (1, 1)
 
 
-@pytest.mark.parametrize("bad", [wrong_enum, missing_keys, malformed, truncated])
+@pytest.mark.parametrize("bad", [wrong_enum, missing_keys, malformed])
 def test_invalid_content_is_reasked_in_the_conversation(server, tmp_path, bad):
     first = bad()
     server.enqueue(first, Reply(usage=(130, 25)))
@@ -108,8 +108,6 @@ def test_invalid_content_is_reasked_in_the_conversation(server, tmp_path, bad):
         [failure] = cache.failures()
         assert failure["raw"] == first.text
         assert cache.count() == 1
-    if bad is truncated:
-        assert "finish_reason=length" in failure["error"]
 
 
 def test_reasks_are_capped_and_invalid_record_is_not_cached(server, tmp_path):
@@ -175,13 +173,70 @@ def test_timeout_is_retried(server):
     assert time.monotonic() - t0 < 2.0  # the slow reply was abandoned, not awaited
 
 
-def test_connection_errors_are_retried(tmp_path):
+def test_an_unreachable_server_stops_the_run_after_the_readiness_wait(tmp_path):
     with serve() as gone:
         url = gone.openai_url
-    respondent = OpenAIRespondent(base_url=url, max_retries=2, backoff_base=0.001)
-    [ans] = respondent.answer_all(make_requests(1))
-    assert ans.error == "transport: connection error (ConnectError) after 2 retries"
-    assert ans.calls == 3
+    respondent = OpenAIRespondent(base_url=url, max_retries=5, backoff_base=0.001,
+                                  ready_timeout=0.6)
+    t0 = time.monotonic()
+    with pytest.raises(TransportError, match=r"not ready after waiting 0.6 s: connection error"):
+        respondent.answer_all(make_requests(20))
+    assert 0.6 <= time.monotonic() - t0 < 5.0  # bounded, not 20 records × 5 retries
+
+
+def test_a_loading_server_is_waited_for(server, tmp_path):
+    """llama.cpp answers 503 while it loads the model: wait, then run."""
+    server.enqueue_models(Reply(status=503), Reply(status=503))
+    [ans] = make(server, tmp_path, ready_timeout=10).answer_all(make_requests(1))
+    assert ans.answer == valid_answer() and server.model_checks == 3 and server.calls == 1
+
+
+def test_a_rejected_key_stops_at_the_readiness_check(server, tmp_path):
+    server.enqueue_models(Reply(status=401, raw=json.dumps(
+        {"error": {"message": f"Incorrect API key provided: {KEY}"}}).encode()))
+    with pytest.raises(TransportError, match="HTTP 401") as info:
+        make(server, tmp_path).answer_all(make_requests(3))
+    assert server.calls == 0 and server.model_checks == 1
+    assert KEY not in str(info.value) and "***" in str(info.value)
+
+
+def test_consecutive_transport_failures_trip_the_breaker(server, tmp_path):
+    server.responder = lambda rec: Reply(status=500)
+    respondent = make(server, tmp_path, max_concurrency=1, max_consecutive_failures=3)
+    with pytest.raises(TransportError, match="3 records in a row failed"):
+        respondent.answer_all(make_requests(50))
+    assert server.calls == 3 * 3  # three records × (1 call + 2 retries), then stop
+
+
+def test_a_success_resets_the_breaker(server, tmp_path):
+    server.enqueue(*[Reply(status=500)] * 6, Reply(), *[Reply(status=500)] * 6, Reply())
+    answers = make(server, tmp_path, max_concurrency=1, max_retries=2,
+                   max_consecutive_failures=3).answer_all(make_requests(6))
+    assert [a.answer is not None for a in answers] == [False, False, True] * 2
+
+
+def test_max_tokens_is_sent_and_a_truncated_reply_gets_twice_the_room(server, tmp_path):
+    server.enqueue(truncated(), Reply())
+    [ans] = make(server, tmp_path, max_tokens=300).answer_all(make_requests(1))
+    assert ans.answer == valid_answer()
+    first, second = (r.body for r in server.requests)
+    assert first["max_tokens"] == 300 and second["max_tokens"] == 600
+    assert len(second["messages"]) == 2  # sent again, not re-asked with the cut reply
+
+
+def test_a_truncated_reply_without_a_limit_is_not_reasked(server, tmp_path):
+    server.enqueue(truncated(), Reply())
+    [ans] = make(server, tmp_path).answer_all(make_requests(1))
+    assert ans.answer is None and "--max-tokens" in ans.error and server.calls == 1
+    assert "max_tokens" not in server.requests[0].body
+
+
+def test_the_served_model_is_recorded_and_cached(server, tmp_path):
+    server.responder = lambda rec: Reply(model="test-model-2026-01-01")
+    [ans] = make(server, tmp_path).answer_all(make_requests(1))
+    assert ans.served_model == "test-model-2026-01-01"
+    [again] = make(server, tmp_path).answer_all(make_requests(1))
+    assert again.cached and again.served_model == "test-model-2026-01-01"
 
 
 def test_other_4xx_is_final(server):
@@ -328,7 +383,7 @@ def test_backoff_is_exponential_capped_and_retry_after_wins():
     from email.utils import format_datetime
 
     from popnavshift.responses.llm import RetryPolicy
-    from popnavshift.responses.llm.transport import MAX_RETRY_AFTER, parse_retry_after
+    from popnavshift.responses.llm.retries import MAX_RETRY_AFTER, parse_retry_after
 
     policy = RetryPolicy(max_retries=5, backoff_base=0.5, backoff_cap=3.0)
     assert [policy.delay(n) for n in range(1, 6)] == [0.5, 1.0, 2.0, 3.0, 3.0]

@@ -24,6 +24,7 @@ def response_rows(draw_levels, draw_actions, n):
             "variant": "baseline",
             "respondent": "t",
             "model": "t",
+            "served_model": "t",
             "probe_set": PROBE_SET_HASH,
         }
         row.update({f"action_{j + 1}": draw_actions[i][j] for j in range(8)})

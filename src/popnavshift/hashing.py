@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
+from pathlib import Path
 from typing import Any
 
 
@@ -29,3 +31,19 @@ def stable_seed(*parts: Any) -> int:
 def unit_hash(*parts: Any) -> float:
     """A deterministic pseudo-uniform number in [0, 1) from ``parts``."""
     return int(digest(list(parts))[:13], 16) / float(1 << 52)
+
+
+def content_digest(path: str | os.PathLike[str]) -> str:
+    """Hex sha256 of a file's bytes, or of a folder's files (relative names and bytes,
+    in sorted order): a stamp that changes when the content changes, whatever the path."""
+    root = Path(path)
+    files = [root] if root.is_file() else sorted(p for p in root.rglob("*") if p.is_file())
+    h = hashlib.sha256()
+    for f in files:
+        if f != root:
+            h.update(f.relative_to(root).as_posix().encode() + b"\0")
+        with f.open("rb") as stream:
+            for block in iter(lambda: stream.read(1 << 20), b""):
+                h.update(block)
+        h.update(b"\0")
+    return h.hexdigest()

@@ -19,7 +19,7 @@ from typing import Any
 
 import pandas as pd
 
-from .errors import InputError
+from .errors import InputError, RespondentError
 from .io import write_json, write_parquet
 from .personas.variants import MATCHED_N_DEFAULT, matched_ids
 from .plugins import make_respondent
@@ -103,19 +103,34 @@ def run_responses(folder: Path, s: PopulationSettings, show_progress: bool = Tru
     total = len(personas) + len(matched)
     with progress_bar(f"probing ({respondent.name})", total, show_progress) as advance:
         responses, invalid, stats = collect_responses(personas, respondent, matched, advance)
-    write_parquet(responses, folder / "responses.parquet")
     write_parquet(invalid, folder / "responses_invalid.parquet")
+    _require_valid(responses, invalid, respondent, folder / "responses_invalid.parquet")
+    write_parquet(responses, folder / "responses.parquet")
     meta = {**stats, **respondent.describe(), "probe_set": PROBE_SET_HASH, "matched_n": s.matched_n}
     if s.respondent2 is not None:  # the matched pair again, with the second respondent
         second = respondent_from(s.respondent2, s.respondent2_options, folder)
         pair = personas[personas["persona_id"].isin(matched)]
         with progress_bar(f"probing ({second.name}, 2nd)", 2 * len(pair), show_progress) as adv:
             alt, alt_invalid, alt_stats = collect_responses(pair, second, matched, adv)
-        write_parquet(alt, folder / "responses_alt.parquet")
         write_parquet(alt_invalid, folder / "responses_alt_invalid.parquet")
+        _require_valid(alt, alt_invalid, second, folder / "responses_alt_invalid.parquet")
+        write_parquet(alt, folder / "responses_alt.parquet")
         meta["second"] = {**alt_stats, **second.describe(), "label": s.respondent2_label}
     write_json(meta, folder / "responses.json")
     return responses
+
+
+def _require_valid(responses: pd.DataFrame, invalid: pd.DataFrame, respondent,
+                   listed_in: Path) -> None:
+    """RespondentError when every record is invalid: nothing downstream can use the run,
+    and a zero exit would hide a dead server or a broken model."""
+    if len(responses) or not len(invalid):
+        return
+    raise RespondentError(
+        f"{respondent.name} {respondent.model}: no valid response in {len(invalid)} records; "
+        f"first error: {invalid['error'].iloc[0]}",
+        hint=f"every record is listed in {listed_in}; -v shows retries and re-asks",
+    )
 
 
 def run_profiles(folder: Path, s: PopulationSettings) -> pd.DataFrame:

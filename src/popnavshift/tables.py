@@ -138,7 +138,10 @@ RESPONSES = declare(
         _col("persona_id", "str", "the persona answering", refers=PERSONA_REF),
         _VARIANT,
         _col("respondent", "str", "respondent name (rule, openai, gemini, a plug-in)"),
-        _col("model", "str", "the respondent's model and settings"),
+        _col("model", "str", "the model asked for, with the respondent's settings"),
+        _col("served_model", "str", "the model that answered, as the server named it",
+             nullable=True, missing="the respondent or server names no model (rule "
+             "respondent, a server that omits it)"),
         _col("probe_set", "str", "hash of the probe texts and attributes asked"),
         *(_col(c, "str", f"action chosen in probe P{c[7:]}: one of {', '.join(ACTIONS)}")
           for c in ACTION_COLUMNS),

@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from ..progress import console
-from . import app
+from . import MAX_WORKERS, app, check_workers, say
 from .simulation import ParamOpt, parse_params
 
 
@@ -46,12 +46,14 @@ def evaluate(
         str, typer.Option(help="Comma-separated controllers to compare with.")
     ] = "reactive,early_yield,robot_orca",
     param: ParamOpt = None,
-    workers: Annotated[int, typer.Option("--workers", "-w", help="Worker processes.")] = 2,
+    workers: Annotated[
+        int, typer.Option("--workers", "-w", min=1, max=MAX_WORKERS, help="Worker processes.")
+    ] = 2,
     check: Annotated[
         bool, typer.Option(help="Run the controller contract checker first.")
     ] = True,
-    n_boot: Annotated[int, typer.Option(help="Bootstrap resamples for the CIs.")] = 1000,
-    seed: Annotated[int, typer.Option(help="Seed of the bootstrap.")] = 0,
+    n_boot: Annotated[int, typer.Option(min=1, help="Bootstrap resamples for the CIs.")] = 1000,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the bootstrap.")] = 0,
     safety_threshold: Annotated[
         float,
         typer.Option(min=0.0, max=1.0, help="Share of the controller's runs ending in a "
@@ -71,6 +73,7 @@ def evaluate(
     from ..plugins import controller_id
     from . import folder
 
+    check_workers(workers)
     s, default_dir = _baseline_study(study)
     base = folder(study_dir or default_dir)
     params = parse_params(param)
@@ -78,14 +81,14 @@ def evaluate(
     names = tuple(b.strip() for b in baselines.split(",") if b.strip())
     ev = run_evaluation(identity, s, base, out, baselines=names, workers=workers,
                         run_check=check,
-                        log=lambda msg: console.print(msg, highlight=False, soft_wrap=True))
+                        log=lambda msg: console.print(say(msg), highlight=False, soft_wrap=True))
     if ev.counts["controller_errors"]:
         console.print(f"[yellow]warning[/]: the controller raised in "
                       f"{ev.counts['controller_errors']} of its {ev.counts['controller_runs']} "
                       "runs (recorded as controller_error; see the card)")
     with console.status("writing the card…"):
         html, png = make_card(ev, n_boot=n_boot, seed=seed, safety_threshold=safety_threshold)
-    console.print(f"card → {html}\nfigure → {png}", soft_wrap=True, highlight=False)
+    console.print(f"card → {say(html)}\nfigure → {say(png)}", soft_wrap=True, highlight=False)
 
 
 MADE_STUDY = Path("study")  # where `make run` writes the paper study

@@ -10,9 +10,10 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
+from ..engine.lock import study_lock
 from ..errors import ConfigError
 from ..progress import console
-from . import Out, app, folder
+from . import Out, app, finite_range, folder, say
 
 
 def _settings(**kw: Any):
@@ -21,30 +22,17 @@ def _settings(**kw: Any):
     return PopulationSettings(**{k: v for k, v in kw.items() if v is not None})
 
 
-def _respondent_options(
-    model: str | None,
-    base_url: str | None,
-    api_key_env: str | None,
-    temperature: float | None,
-    respondent_seed: int | None,
-    concurrency: int | None,
-    rate_limit: float | None,
-) -> dict[str, Any]:
-    opts: dict[str, Any] = {
-        "model": model,
-        "base_url": base_url,
-        "api_key_env": api_key_env,
-        "temperature": temperature,
-        "seed": respondent_seed,
-        "max_concurrency": concurrency,
-        "rate_limit": rate_limit,
-    }
-    opts = {k: v for k, v in opts.items() if v is not None}
-    if str(opts.get("api_key_env", "")).lower() in ("", "none"):
-        opts.pop("api_key_env", None)
-        if api_key_env is not None:  # --api-key-env none: a local server that needs no key
-            opts["api_key_env"] = None
+def _respondent_options(api_key_env: str | None, **given: Any) -> dict[str, Any]:
+    """The respondent options the user gave (``None`` = not given: the respondent's
+    default); ``--api-key-env none`` means a local server that needs no key."""
+    opts = {k: v for k, v in given.items() if v is not None}
+    if api_key_env is not None:
+        opts["api_key_env"] = None if api_key_env.strip().lower() in ("", "none") else api_key_env
     return opts
+
+
+def _opt(help_: str, **kw: Any) -> Any:
+    return typer.Option(help=help_, rich_help_panel="LLM respondents", **kw)
 
 
 @app.command()
@@ -65,8 +53,8 @@ def personas(
             "or hf://MatrAIx2026/MatrAIx_Persona_1M_Public_Release (needs the 'hf' extra)."
         ),
     ] = "synthetic",
-    n: Annotated[int, typer.Option(help="Number of personas to sample.")] = 600,
-    seed: Annotated[int, typer.Option(help="Sampling / generation seed.")] = 0,
+    n: Annotated[int, typer.Option(min=1, help="Number of personas to sample.")] = 600,
+    seed: Annotated[int, typer.Option(min=0, help="Sampling / generation seed.")] = 0,
     missing: Annotated[
         str,
         typer.Option(
@@ -106,9 +94,10 @@ def personas(
         sources=tuple(only_source) if only_source else None,
         verify_checksums=verify_checksums,
     )
-    df = run_personas(study_folder, settings, target)
+    with study_lock(study_folder):
+        df = run_personas(study_folder, settings, target)
     mix = ", ".join(f"{k} {v}" for k, v in df["source"].value_counts().sort_index().items())
-    console.print(f"[green]{len(df)} personas[/] ({mix}) → {target}", highlight=False)
+    console.print(f"[green]{len(df)} personas[/] ({say(mix)}) → {say(target)}")
 
 
 @app.command()
@@ -131,14 +120,41 @@ def probe(
             "'none' for local servers such as Ollama."
         ),
     ] = None,
-    temperature: Annotated[float | None, typer.Option(help="Sampling temperature.")] = None,
-    respondent_seed: Annotated[
-        int | None, typer.Option(help="Respondent seed (LLM seed or rule noise).")
+    temperature: Annotated[
+        float | None, _opt("Sampling temperature (0–2).", callback=finite_range(0, 2))
     ] = None,
-    concurrency: Annotated[int | None, typer.Option(help="Concurrent LLM requests.")] = None,
-    rate_limit: Annotated[float | None, typer.Option(help="LLM requests per second.")] = None,
-    matched_n: Annotated[int, typer.Option(help="Matched sample size (deadline re-ask).")] = 202,
-    seed: Annotated[int, typer.Option(help="Seed of the matched sample.")] = 0,
+    respondent_seed: Annotated[
+        int | None, typer.Option(min=0, help="Respondent seed (LLM seed or rule noise).")
+    ] = None,
+    concurrency: Annotated[int | None, _opt("Concurrent LLM requests.", min=1, max=256)] = None,
+    rate_limit: Annotated[
+        float | None, _opt("LLM requests per second.", callback=finite_range(0, above=True))
+    ] = None,
+    timeout: Annotated[
+        float | None, _opt("Seconds to wait for one reply.", callback=finite_range(0, above=True))
+    ] = None,
+    max_retries: Annotated[
+        int | None, _opt("Transport retries per request (HTTP 429/5xx, timeouts).", min=0, max=20)
+    ] = None,
+    max_reasks: Annotated[
+        int | None, _opt("Re-asks per record after an invalid reply.", min=0, max=10)
+    ] = None,
+    max_tokens: Annotated[
+        int | None, _opt("Most tokens a reply may have (sent to the server).", min=1)
+    ] = None,
+    ready_timeout: Annotated[
+        float | None,
+        _opt("Seconds to wait for a server that is starting or loading its model.",
+             callback=finite_range(0)),
+    ] = None,
+    max_failures: Annotated[
+        int | None,
+        _opt("Stop after this many records in a row fail at the transport level.", min=1),
+    ] = None,
+    matched_n: Annotated[
+        int, typer.Option(min=1, help="Matched sample size (deadline re-ask).")
+    ] = 202,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the matched sample.")] = 0,
 ) -> None:
     """Ask every persona the 8 encounter probes; write responses.parquet.
 
@@ -150,18 +166,22 @@ def probe(
 
     out = folder(out)
     opts = _respondent_options(
-        model, base_url, api_key_env, temperature, respondent_seed, concurrency, rate_limit
+        api_key_env, model=model, base_url=base_url, temperature=temperature,
+        seed=respondent_seed, max_concurrency=concurrency, rate_limit=rate_limit,
+        timeout=timeout, max_retries=max_retries, max_reasks=max_reasks, max_tokens=max_tokens,
+        ready_timeout=ready_timeout, max_consecutive_failures=max_failures,
     )
     if respondent == "rule":
         opts = {k: v for k, v in opts.items() if k == "seed"}
     s = _settings(respondent=respondent, respondent_options=opts, matched_n=matched_n, seed=seed)
     started = time.perf_counter()
-    df = run_responses(out, s, show_progress=True)
+    with study_lock(out):
+        df = run_responses(out, s, show_progress=True)
     stats = json.loads((out / "responses.json").read_text())
     console.print(
         f"[green]{len(df)} valid responses[/] ({stats['invalid']} invalid, "
         f"{stats['calls']} calls, {stats['cached']} cache hits) in "
-        f"{time.perf_counter() - started:.1f} s → {out / 'responses.parquet'}"
+        f"{time.perf_counter() - started:.1f} s → {say(out / 'responses.parquet')}"
     )
     if stats["invalid"]:
         import pandas as pd
@@ -169,7 +189,7 @@ def probe(
         bad = pd.read_parquet(out / "responses_invalid.parquet")
         table = Table("persona", "variant", "error", title="invalid records")
         for r in bad.head(20).itertuples():
-            table.add_row(str(r.persona_id), str(r.variant), str(r.error))
+            table.add_row(say(r.persona_id), say(r.variant), say(r.error))
         console.print(table)
 
 
@@ -185,17 +205,19 @@ def profiles(
 
     out = folder(out)
     maps = tuple(mapping) if mapping else ("A", "B", "C", "D")
-    df = run_profiles(out, _settings(mappings=maps))
+    with study_lock(out):
+        df = run_profiles(out, _settings(mappings=maps))
     console.print(
-        f"[green]{len(df)} profiles[/] (mappings {', '.join(maps)}) → {out / 'profiles.parquet'}"
+        f"[green]{len(df)} profiles[/] (mappings {say(', '.join(maps))}) → "
+        f"{say(out / 'profiles.parquet')}"
     )
 
 
 @app.command()
 def populations(
     out: Out = Path("study"),
-    matched_n: Annotated[int, typer.Option(help="Matched sample size.")] = 202,
-    seed: Annotated[int, typer.Option(help="Seed of the matched sample.")] = 0,
+    matched_n: Annotated[int, typer.Option(min=1, help="Matched sample size.")] = 202,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the matched sample.")] = 0,
 ) -> None:
     """Build the 8 population conditions; write populations.parquet and profile figures."""
     from ..pipeline import run_populations
@@ -203,9 +225,10 @@ def populations(
     out = folder(out)
     profiles_path = out / "profiles.parquet"
     maps = _mappings_in(profiles_path)
-    table = run_populations(out, _settings(matched_n=matched_n, seed=seed, mappings=maps))
+    with study_lock(out):
+        table = run_populations(out, _settings(matched_n=matched_n, seed=seed, mappings=maps))
     print_sizes(table)
-    console.print(f"→ {out / 'populations.parquet'}, figures in {out / 'figures'}")
+    console.print(f"→ {say(out / 'populations.parquet')}, figures in {say(out / 'figures')}")
 
 
 def _mappings_in(path: Path) -> tuple[str, ...]:
@@ -223,5 +246,5 @@ def print_sizes(table) -> None:
     sizes = population_sizes(table[table["mapping"] == "A"])
     t = Table("population", "n", title="population sizes")
     for name, size in sizes.items():
-        t.add_row(name, str(size))
+        t.add_row(say(name), str(size))
     console.print(t)

@@ -11,7 +11,7 @@ from rich.table import Table
 
 from ..errors import ConfigError
 from ..progress import console
-from . import app
+from . import app, say
 
 StudyDir = Annotated[
     Path,
@@ -73,7 +73,7 @@ def _run_inputs(folder: Path, episode: str, population: str, mapping: str, seed:
 
         raise UnknownNameError("population", population, POPULATIONS)
     if not (folder / "populations.parquet").exists():
-        console.print(f"building the default populations in {folder} …")
+        console.print(f"building the default populations in {say(folder)} …")
         folder.mkdir(parents=True, exist_ok=True)
         run_population_stages(folder, population_settings(Study(name="default", parts={})), True)
     pops = read_table(folder / "populations.parquet", "populations")
@@ -98,7 +98,7 @@ def _controller(name: str, params: dict[str, Any]):
 @app.command()
 def episodes(
     json_out: Annotated[bool, typer.Option("--json", help="Print the counts as JSON.")] = False,
-    seed: Annotated[int, typer.Option(help="Study seed (episode draws).")] = 0,
+    seed: Annotated[int, typer.Option(min=0, help="Study seed (episode draws).")] = 0,
     scene: Annotated[str | None, typer.Option(help="Only this scene type.")] = None,
 ) -> None:
     """List the physical cells and episodes (type, width, density, robot speed, variant, peds)."""
@@ -116,7 +116,9 @@ def episodes(
         return
     if scene is not None:
         table = table[table["scene"] == scene]
-    t = Table("episode", "scene", "width [m]", "density [/m²]", "robot [m/s]", "variant", "peds")
+    t = Table(*(say(h) for h in (
+        "episode", "scene", "width [m]", "density [/m²]", "robot [m/s]", "variant", "peds"
+    )))
     for r in table.itertuples():
         t.add_row(
             r.id,
@@ -140,7 +142,7 @@ def simulate(
     param: ParamOpt = None,
     mapping: Annotated[str, typer.Option(help="Mapping A–D.")] = "A",
     study_dir: StudyDir = Path("study"),
-    seed: Annotated[int, typer.Option(help="Study seed (episode draws).")] = 0,
+    seed: Annotated[int, typer.Option(min=0, help="Study seed (episode draws).")] = 0,
     json_out: Annotated[bool, typer.Option("--json", help="Print the rows as JSON.")] = False,
 ) -> None:
     """Run one episode under one population and controller; print its metrics.
@@ -160,9 +162,9 @@ def simulate(
             )
         )
         return
-    t = Table("metric", "value", title=f"{episode} · {population} · {controller} · {backend}")
+    t = Table("metric", "value", title=say(f"{episode} · {population} · {controller} · {backend}"))
     for k, v in result.run.items():
-        t.add_row(k, f"{v:.3f}" if isinstance(v, float) else str(v))
+        t.add_row(say(k), f"{v:.3f}" if isinstance(v, float) else say(v))
     console.print(t)
     peds = result.pedestrians
     arrived = peds["arrived"].mean() if len(peds) else float("nan")
@@ -187,7 +189,7 @@ def replay(
     param: ParamOpt = None,
     mapping: Annotated[str, typer.Option(help="Mapping A–D.")] = "A",
     study_dir: StudyDir = Path("study"),
-    seed: Annotated[int, typer.Option(help="Study seed (episode draws).")] = 0,
+    seed: Annotated[int, typer.Option(min=0, help="Study seed (episode draws).")] = 0,
 ) -> None:
     """Render one run as an animated SVG/GIF or an HTML page you can watch.
 
@@ -203,13 +205,13 @@ def replay(
     title = f"{episode} · {population} · {controller} · {backend} → {result.run['outcome']}"
     assert result.trajectory is not None
     paths = write_replay(result.trajectory, result.run, out, title)
-    console.print("wrote " + ", ".join(str(p) for p in paths))
+    console.print("wrote " + ", ".join(say(p) for p in paths))
 
 
 @app.command()
 def bench(
-    n_per_scene: Annotated[int, typer.Option(help="Episodes per scene type.")] = 3,
-    repeats: Annotated[int, typer.Option(help="Timing repeats per episode.")] = 1,
+    n_per_scene: Annotated[int, typer.Option(min=1, help="Episodes per scene type.")] = 3,
+    repeats: Annotated[int, typer.Option(min=1, help="Timing repeats per episode.")] = 1,
     profile: Annotated[bool, typer.Option(help="Also profile the full stack.")] = False,
     json_path: Annotated[Path | None, typer.Option("--json", help="Also write JSON here.")] = None,
 ) -> None:
@@ -217,7 +219,7 @@ def bench(
     from ..sim.bench import format_bench, run_bench
 
     result = run_bench(n_per_scene=n_per_scene, repeats=repeats, profile=profile)
-    console.print(format_bench(result))
+    console.print(say(format_bench(result)))
     if json_path is not None:
         from ..io import write_json
 

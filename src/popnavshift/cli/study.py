@@ -11,7 +11,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from ..progress import console
-from . import app, folder
+from . import MAX_WORKERS, app, check_workers, folder, say
 
 StudyArg = Annotated[
     str | None,
@@ -37,9 +37,11 @@ def plan(
     """
     from ..engine.plan import count_runs
     from ..engine.study import load_study
+    from ..engine.validate import validate_study
     from ..episodes.specs import all_episodes
 
     s = load_study(study or "paper")
+    validate_study(s, all_episodes(s.seed))
     counts = count_runs(s, all_episodes(s.seed))
     pilot = from_dir or Path("study" if study is None else f"study-{s.name}")
     advice = power_advice(pilot / "report" / "tables" / "evidence_power.csv")
@@ -48,10 +50,11 @@ def plan(
                                "power": advice.to_dict("records") if advice is not None
                                else None}, indent=2, default=str))
         return
-    t = Table("part", "episodes", "robot runs", "no-robot runs", "total", title=f"study {s.name}")
+    t = Table("part", "episodes", "robot runs", "no-robot runs", "total",
+              title=f"study {say(s.name)}")
     for name, c in counts.items():
         t.add_row(
-            name,
+            say(name),
             str(c.get("episodes", "")),
             f"{c['robot_runs']:,}",
             f"{c['no_robot_runs']:,}",
@@ -103,7 +106,11 @@ def run(
     workers: Annotated[
         int,
         typer.Option(
-            "--workers", "-w", help="Worker processes (or Ray CPUs for a local Ray instance)."
+            "--workers",
+            "-w",
+            min=1,
+            max=MAX_WORKERS,
+            help="Worker processes (or Ray CPUs for a local Ray instance).",
         ),
     ] = 2,
     executor: Annotated[str, typer.Option(help="local (worker processes) or ray.")] = "local",
@@ -121,15 +128,20 @@ def run(
     again: finished work is kept and verified, the rest is done, and the tables come
     out identical to an uninterrupted run.
     """
+    from ..engine.lock import study_lock
     from ..engine.runner import run_study
     from ..engine.study import load_study
     from .population import print_sizes
 
+    check_workers(workers, executor)
     s = load_study(study or "paper")
     target = folder(out or Path("study" if study is None else f"study-{s.name}"))
-    report_ = run_study(s, target, workers=workers, executor_name=executor, address=address)
+    with study_lock(target):
+        report_ = run_study(s, target, workers=workers, executor_name=executor, address=address)
     if report_.nothing_to_do:
-        console.print(f"[green]nothing to do[/]: {target} is complete ({report_.planned:,} runs)")
+        console.print(
+            f"[green]nothing to do[/]: {say(target)} is complete ({report_.planned:,} runs)"
+        )
     else:
         import pandas as pd
 
@@ -140,24 +152,23 @@ def run(
         )
     if report:
         _write_report(target)
-    console.print(f"outputs in {target.resolve()}")
+    console.print(f"outputs in {say(target.resolve())}")
 
 
 @app.command("report")
 def report_cmd(
     study_dir: Annotated[Path, typer.Argument(help="A study folder written by `popnavshift run`.")],
-    n_boot: Annotated[int, typer.Option(help="Bootstrap resamples for the CIs.")] = 1000,
+    n_boot: Annotated[int, typer.Option(min=1, help="Bootstrap resamples for the CIs.")] = 1000,
 ) -> None:
     """Write DIR/report/index.html with every table (CSV) and figure (PNG, SVG)."""
     _write_report(study_dir, n_boot=n_boot)
 
 
 def _write_report(study_dir: Path, n_boot: int = 1000) -> None:
-    try:
-        from ..report.build import build_report
-    except ImportError:  # the report stage is optional until it exists
-        console.print("[yellow]report stage not available[/]")
-        return
+    from ..engine.store import check_study_folder
+    from ..report.build import build_report
+
+    check_study_folder(study_dir)
     with console.status("writing the report…"):
         path = build_report(study_dir, n_boot=n_boot)
-    console.print(f"report → {path}")
+    console.print(f"report → {say(path)}")

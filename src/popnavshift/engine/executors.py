@@ -9,6 +9,7 @@ Processes, not threads: Python behaviours hold the GIL.
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 
@@ -27,7 +28,7 @@ def run_local(batches: Sequence[Batch], context: Context, workers: int) -> Itera
         return
     ctx = mp.get_context("spawn")
     with ProcessPoolExecutor(
-        workers, mp_context=ctx, initializer=init_worker, initargs=(context,)
+        workers, mp_context=ctx, initializer=init_worker, initargs=(context, os.getpid())
     ) as pool:
         pending: set[Future] = set()
         todo: Iterator[Batch] = iter(batches)

@@ -19,7 +19,7 @@ import pandas as pd
 
 from .. import __version__
 from ..errors import ConfigError
-from ..hashing import digest
+from ..hashing import content_digest, digest
 from ..io import write_json, write_parquet
 from ..pipeline import (
     PopulationSettings,
@@ -35,8 +35,9 @@ from ..responses.probes import PROBE_SET_HASH
 from ..tables import RUN_KEY
 from .executors import executor
 from .plan import batches, count_runs, plan_study
-from .store import RunStore
+from .store import RunStore, read_stamps, readable_parquet
 from .study import Study
+from .validate import validate_study
 from .worker import Context
 
 STAGES = ("personas", "responses", "profiles", "populations")
@@ -93,11 +94,13 @@ def population_settings(study: Study) -> PopulationSettings:
 
 def _stage_stamps(s: PopulationSettings) -> dict[str, str]:
     stamps: dict[str, str] = {}
+    source: list[Any] = ["personas", s.source, s.n, s.seed, s.missing]
+    if s.source != "synthetic" and Path(s.source).exists():
+        source.append(content_digest(s.source))  # an edited file reruns its stage
     release = [s.codebook, s.sources, s.verify_checksums]
-    stamps["personas"] = digest(  # release options only when set: old stamps stay valid
-        ["personas", s.source, s.n, s.seed, s.missing]
-        + (release if release != [None, None, True] else [])
-    )
+    if release != [None, None, True]:  # release options only when set: old stamps stay valid
+        source.append(release)
+    stamps["personas"] = digest(source)
     stamps["responses"] = digest(
         [
             "responses",
@@ -119,11 +122,12 @@ def _stage_stamps(s: PopulationSettings) -> dict[str, str]:
 def run_population_stages(folder: Path, s: PopulationSettings, show_progress: bool) -> list[str]:
     """Run the population pipeline stages whose stamp changed; return their names."""
     stamp_file = folder / "stages.json"
-    done = json.loads(stamp_file.read_text()) if stamp_file.exists() else {}
+    done = read_stamps(folder)
     want = _stage_stamps(s)
     ran: list[str] = []
     for stage in STAGES:
-        if done.get(stage) == want[stage] and (folder / STAGE_FILES[stage]).exists() and not ran:
+        intact = readable_parquet(folder / STAGE_FILES[stage])  # a damaged output is redone
+        if done.get(stage) == want[stage] and intact and not ran:
             continue
         with console.status(f"stage {stage}…"):
             if stage == "personas":
@@ -150,6 +154,7 @@ def run_study(
 ) -> RunReport:
     from ..episodes.specs import all_episodes, episodes_table
 
+    validate_study(study, all_episodes(seed=study.seed))  # before any stage runs
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     report = RunReport(folder)
@@ -159,9 +164,10 @@ def run_study(
     populations = read_table(folder / "populations.parquet", "populations")
 
     episodes = all_episodes(seed=study.seed)
-    stamps = json.loads((folder / "stages.json").read_text())
+    stamps = read_stamps(folder)
     episodes_stamp = digest(["episodes", study.seed])
-    if stamps.get("episodes") != episodes_stamp or not (folder / "episodes.parquet").exists():
+    episodes_path = folder / "episodes.parquet"
+    if stamps.get("episodes") != episodes_stamp or not readable_parquet(episodes_path):
         write_parquet(episodes_table(episodes), folder / "episodes.parquet")
         stamps["episodes"] = episodes_stamp
         write_json(stamps, folder / "stages.json")
@@ -221,7 +227,9 @@ def run_study(
 
 def _holds_exactly(folder: Path, runs: list) -> bool:
     """Whether ``runs.parquet`` holds exactly the planned runs (a study that dropped a
-    controller or a population must be compacted again)."""
+    controller or a population must be compacted again; a damaged table is rebuilt)."""
+    if not RunStore(folder).tables_intact():
+        return False
     have = pd.read_parquet(folder / "runs.parquet", columns=list(RUN_KEY))
     return len(have) == len(runs)
 
@@ -255,7 +263,8 @@ def write_manifest(
             "respondent": {
                 k: v
                 for k, v in responses_meta.items()
-                if k in ("respondent", "model", "seed", "scale", "base_url", "temperature")
+                if k in ("respondent", "model", "served_models", "seed", "scale", "base_url",
+                         "temperature", "max_tokens")
             },
             "counts": counts,
             "tables": {"runs": n_runs, "pedestrians": n_peds},

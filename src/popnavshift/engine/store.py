@@ -20,6 +20,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from ..errors import InputError
 from ..io import write_atomic, write_json, write_parquet
 from ..tables import RUN_KEY as TABLE_RUN_KEY
 from ..tables import RUNS, check_table
@@ -27,6 +28,56 @@ from .plan import Batch, Run
 
 RUN_KEY = list(TABLE_RUN_KEY)
 META_KEY = b"popnavshift"
+
+
+def read_stamps(folder: Path) -> dict:
+    """The stage stamps of ``folder/stages.json`` ({} if absent); InputError if damaged."""
+    path = Path(folder) / "stages.json"
+    if not path.exists():
+        return {}
+    try:
+        stamps = json.loads(path.read_text("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError):
+        stamps = None
+    if not isinstance(stamps, dict):
+        raise InputError(
+            f"{path} is damaged (not a JSON object)",
+            hint="delete it: every stage is then checked and redone as needed",
+        )
+    return stamps
+
+
+def readable_parquet(path: Path) -> bool:
+    """Whether ``path`` is a Parquet file with an intact footer (a truncated or
+    overwritten file has none). Pages are not decoded: the tables can be large."""
+    try:
+        pq.read_metadata(path)
+        return True
+    except Exception:
+        return False
+
+
+def check_study_folder(folder: Path) -> None:
+    """InputError naming the first damaged table or JSON file of a study folder (the
+    report reads them all); absent files are left for the reader to report."""
+    folder = Path(folder)
+    for name in ("runs", "pedestrians", "populations", "episodes"):
+        path = folder / f"{name}.parquet"
+        if path.exists() and not readable_parquet(path):
+            raise InputError(
+                f"{path} is damaged (not a readable Parquet file)",
+                hint="`popnavshift run` on this folder rebuilds the run tables from their "
+                "shards" if name in ("runs", "pedestrians") else "run its stage again",
+            )
+    for name in ("manifest", "personas", "responses"):
+        path = folder / f"{name}.json"
+        try:
+            if path.exists():
+                json.loads(path.read_text("utf-8"))
+        except (UnicodeDecodeError, json.JSONDecodeError):
+            raise InputError(f"{path} is damaged (not valid JSON)",
+                             hint="run the study again to rewrite it") from None
+    read_stamps(folder)
 
 
 class RunStore:
@@ -90,8 +141,7 @@ class RunStore:
         compaction interrupted)."""
         record = self._record()
         runs_path = self.folder / "runs.parquet"
-        if (record is None or record.get("inputs") != inputs or not runs_path.exists()
-                or not (self.folder / "pedestrians.parquet").exists()
+        if (record is None or record.get("inputs") != inputs or not self.tables_intact()
                 or set(RUNS.names) - set(pq.read_schema(runs_path).names)):  # older columns
             return set()
         made_with = record.get("code", {})
@@ -100,15 +150,18 @@ class RunStore:
         return {r.key for r in planned
                 if r.key in keys and made_with.get(r.controller) == code[r.controller]}
 
+    def tables_intact(self) -> bool:
+        """Whether both compacted tables exist and read back. A damaged one (a truncated
+        copy, a disk error) is never carried: its runs are rebuilt from their shards."""
+        return all(readable_parquet(self.folder / name)
+                   for name in ("runs.parquet", "pedestrians.parquet"))
+
     def _record(self) -> dict | None:
-        path = self.folder / "stages.json"
-        if not path.exists():
-            return None
-        return json.loads(path.read_text()).get(self.RECORD)
+        return read_stamps(self.folder).get(self.RECORD)
 
     def _set_record(self, record: dict | None) -> None:
         path = self.folder / "stages.json"
-        stamps = json.loads(path.read_text()) if path.exists() else {}
+        stamps = read_stamps(self.folder)
         if record is None:
             stamps.pop(self.RECORD, None)
         else:

@@ -10,6 +10,7 @@ falls back to a default.
 
 from __future__ import annotations
 
+import re
 from importlib import resources
 from pathlib import Path
 from typing import Any, Literal
@@ -32,6 +33,7 @@ from ..populations.nulls import null_populations
 
 MATCHED_PAIR: tuple[str, str] = ("matched_base", "matched_deadline")
 SCENES = ("sidewalk", "head_on", "crossing", "bottleneck", "obstruction")
+SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
 
 
 class Strict(BaseModel):
@@ -171,6 +173,15 @@ class Study(Strict):
     respondent2: RespondentSpec | None = None
     parts: dict[str, Part]
     output: str | None = None
+
+    @field_validator("name")
+    @classmethod
+    def _safe_name(cls, v: str) -> str:
+        # the name becomes a folder (./study-<name>): no separators, no "..", no dotfile
+        if not SAFE_NAME.fullmatch(v) or ".." in v:
+            raise ValueError("a study name is letters, digits, '.', '_' and '-' (it names "
+                             "the default output folder study-<name>)")
+        return v
 
     def config_hash(self) -> str:
         """Canonical hash of everything that determines the study's results."""

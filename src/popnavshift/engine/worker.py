@@ -11,6 +11,10 @@ episode seed), never navground worlds: worlds do not survive pickling
 
 from __future__ import annotations
 
+import os
+import signal
+import sys
+import threading
 import time
 from dataclasses import dataclass
 
@@ -28,9 +32,41 @@ class Context:
 _CONTEXT: Context | None = None
 
 
-def init_worker(context: Context) -> None:
+def init_worker(context: Context, parent_pid: int | None = None) -> None:
     global _CONTEXT
     _CONTEXT = context
+    if parent_pid is not None:
+        exit_with_parent(parent_pid)
+
+
+#: how often a worker checks that its parent is alive (s)
+PARENT_POLL = 0.5
+
+
+def exit_with_parent(parent_pid: int) -> None:
+    """End this worker process when ``parent_pid`` dies (kill -9 included).
+
+    A killed parent never shuts its pool down, and its workers, blocked on the task
+    queue, would linger with a few hundred MB each. On Linux the kernel sends
+    SIGTERM at the parent's death (``PR_SET_PDEATHSIG``); everywhere, a daemon
+    thread checks the parent pid and exits the process once it has changed."""
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, int(signal.SIGTERM))  # 1 = PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent_pid:  # the parent died before the line above
+        os._exit(1)
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(PARENT_POLL)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="popnavshift-parent-watch", daemon=True).start()
 
 
 def _members(ctx: Context, mapping: str, population: str) -> pd.DataFrame:

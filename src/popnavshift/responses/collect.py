@@ -70,7 +70,8 @@ def collect_responses(
     Returns ``(responses, invalid, stats)``: ``responses`` follows the
     ``responses`` table spec (one row per persona id and variant); ``invalid``
     lists persona_id, variant, error, raw for records that stayed invalid;
-    ``stats`` sums calls, cache hits and tokens.
+    ``stats`` sums calls, cache hits and tokens and lists the models that answered
+    (``served_models``: what the server reports, e.g. a dated version of ``model``).
     """
     answers = respondent.answer_all(probe_requests(personas, matched), progress=progress)
     rows, bad = [], []
@@ -96,12 +97,14 @@ def collect_responses(
                 "variant": ans.variant,
                 "respondent": respondent.name,
                 "model": respondent.model,
+                "served_model": ans.served_model,
                 "probe_set": PROBE_SET_HASH,
                 **answer_to_row(ans.answer),
             }
         )
     responses = pd.DataFrame(rows, columns=_response_columns())
     stats["invalid"] = len(bad)
+    stats["served_models"] = sorted({a.served_model for a in answers if a.served_model})
     invalid = pd.DataFrame(bad, columns=["persona_id", "variant", "error", "raw"])
     return check_table(responses.astype({"persona_id": str}), "responses"), invalid, stats
 

@@ -38,6 +38,7 @@ class Answer:
     attempts: int = 0  # content attempts (1 + re-asks)
     cached: bool = False
     tokens: dict[str, int] = field(default_factory=dict)  # summed over all attempts
+    served_model: str | None = None  # the model the server says answered (None: not told)
 
 
 Progress = Callable[[int], None]

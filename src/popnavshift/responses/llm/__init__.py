@@ -9,7 +9,8 @@ rate limiter. See ``docs/llm.md`` for usage.
 from .cache import CachedAnswer, CacheStats, ResponseCache, request_key
 from .gemini import GeminiRespondent
 from .openai import OpenAIRespondent
-from .transport import LLMRespondent, RetryPolicy
+from .retries import RetryPolicy
+from .transport import LLMRespondent
 
 __all__ = [
     "CacheStats",

@@ -30,7 +30,7 @@ from ..schema import parse_answer
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2  # 2: responses.served_model (a version-1 file is migrated)
 
 _DDL = """
 CREATE TABLE IF NOT EXISTS responses (
@@ -43,7 +43,8 @@ CREATE TABLE IF NOT EXISTS responses (
     prompt_tokens INTEGER NOT NULL,
     completion_tokens INTEGER NOT NULL,
     total_tokens INTEGER NOT NULL,
-    created REAL NOT NULL
+    created REAL NOT NULL,
+    served_model TEXT
 );
 CREATE INDEX IF NOT EXISTS responses_persona ON responses (persona_id, variant);
 CREATE TABLE IF NOT EXISTS failures (
@@ -74,6 +75,7 @@ class CachedAnswer:
     raw: str
     attempts: int
     tokens: dict[str, int]
+    served_model: str | None = None
 
 
 @dataclass
@@ -101,7 +103,9 @@ class ResponseCache:
             self._db = sqlite3.connect(self.path, timeout=30.0, check_same_thread=False)
             self._db.execute("PRAGMA journal_mode=WAL")
             version = self._db.execute("PRAGMA user_version").fetchone()[0]
-            if version not in (0, SCHEMA_VERSION):
+            if version == 1:  # same tables, without the served model
+                self._db.execute("ALTER TABLE responses ADD COLUMN served_model TEXT")
+            elif version not in (0, SCHEMA_VERSION):
                 raise ConfigError(
                     f"response cache {self.path} has schema version {version}, "
                     f"expected {SCHEMA_VERSION}",
@@ -117,14 +121,14 @@ class ResponseCache:
         """The valid answer stored for ``request_hash``, or None (a miss)."""
         with self._lock:
             row = self._db.execute(
-                "SELECT raw, attempts, prompt_tokens, completion_tokens, total_tokens "
-                "FROM responses WHERE request_hash = ?",
+                "SELECT raw, attempts, prompt_tokens, completion_tokens, total_tokens, "
+                "served_model FROM responses WHERE request_hash = ?",
                 (request_hash,),
             ).fetchone()
             if row is None:
                 self.stats.misses += 1
                 return None
-            raw, attempts, prompt, completion, total = row
+            raw, attempts, prompt, completion, total, served_model = row
             try:
                 answer = parse_answer(raw)
             except RespondentError as exc:
@@ -135,7 +139,7 @@ class ResponseCache:
                 return None
             self.stats.hits += 1
         tokens = {"prompt": prompt, "completion": completion, "total": total}
-        return CachedAnswer(answer, raw, attempts, tokens)
+        return CachedAnswer(answer, raw, attempts, tokens, served_model)
 
     def put(
         self,
@@ -147,15 +151,18 @@ class ResponseCache:
         raw: str,
         attempts: int,
         tokens: dict[str, int],
+        served_model: str | None = None,
     ) -> None:
         """Store a valid answer (raises RespondentError if ``raw`` does not validate)."""
         parse_answer(raw)  # only valid answers may ever be served from this table
         with self._lock:
             self._db.execute(
-                "INSERT OR REPLACE INTO responses VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                "INSERT OR REPLACE INTO responses (request_hash, persona_id, variant, model, "
+                "raw, attempts, prompt_tokens, completion_tokens, total_tokens, created, "
+                "served_model) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 (request_hash, persona_id, variant, model, raw, attempts,
                  tokens.get("prompt", 0), tokens.get("completion", 0), tokens.get("total", 0),
-                 time.time()),
+                 time.time(), served_model),
             )
             self._db.commit()
             self.stats.stored += 1

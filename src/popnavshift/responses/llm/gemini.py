@@ -27,19 +27,11 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from ...errors import ConfigError
+from ...redact import redact
 from ..prompt import SYSTEM_PROMPT, build_prompt
 from ..schema import response_json_schema
-from .transport import (
-    REASK,
-    FinalError,
-    LLMRespondent,
-    Reply,
-    RetryableError,
-    check_setting,
-    check_status,
-    env_key,
-    is_http_url,
-)
+from .retries import FinalError, Reply, RetryableError, check_status
+from .transport import REASK, LLMRespondent, check_setting, env_key, is_http_url
 
 DEFAULT_BASE_URL = "https://generativelanguage.googleapis.com"
 API_VERSION = "v1beta"
@@ -72,12 +64,16 @@ class GeminiRespondent(LLMRespondent):
         max_reasks: int = 2,
         backoff_base: float = 0.5,
         backoff_cap: float = 30.0,
+        max_tokens: int | None = None,
+        ready_timeout: float = 30.0,
+        max_consecutive_failures: int = 5,
     ) -> None:
         super().__init__(
             model=model, temperature=temperature, seed=seed, replicate=replicate,
             cache_path=cache_path, max_concurrency=max_concurrency, rate_limit=rate_limit,
             timeout=timeout, max_retries=max_retries, max_reasks=max_reasks,
-            backoff_base=backoff_base, backoff_cap=backoff_cap,
+            backoff_base=backoff_base, backoff_cap=backoff_cap, max_tokens=max_tokens,
+            ready_timeout=ready_timeout, max_consecutive_failures=max_consecutive_failures,
         )
         self.api_key_env = api_key_env
         self.base_url = base_url
@@ -99,7 +95,8 @@ class GeminiRespondent(LLMRespondent):
             return env_key("GEMINI_API_KEY", "GOOGLE_API_KEY")
         return env_key(self.api_key_env)
 
-    def _body(self, persona: Mapping[str, Any], reasks: Sequence[tuple[str, str]]) -> dict:
+    def _body(self, persona: Mapping[str, Any], reasks: Sequence[tuple[str, str]],
+              max_tokens: int | None = None) -> dict:
         contents = [{"parts": [{"text": build_prompt(persona)}], "role": "user"}]
         for raw, error in reasks:
             contents.append({"parts": [{"text": raw}], "role": "model"})
@@ -109,6 +106,9 @@ class GeminiRespondent(LLMRespondent):
             config["temperature"] = self.temperature
         if self.seed is not None:
             config["seed"] = self.seed
+        limit = max_tokens or self.max_tokens
+        if limit is not None:
+            config["maxOutputTokens"] = limit
         config["responseMimeType"] = "application/json"
         config["responseJsonSchema"] = response_json_schema()
         return {
@@ -168,6 +168,7 @@ class _GeminiSession:
             system_instruction=body["systemInstruction"]["parts"][0]["text"],
             temperature=gen.get("temperature"),
             seed=gen.get("seed"),
+            max_output_tokens=gen.get("maxOutputTokens"),
             response_mime_type=gen["responseMimeType"],
             response_json_schema=gen["responseJsonSchema"],
             automatic_function_calling=types.AutomaticFunctionCallingConfig(disable=True),
@@ -186,6 +187,9 @@ class _GeminiSession:
             raise RetryableError("malformed response body") from None
         return _reply(resp)
 
+    def check_ready(self) -> None:
+        """No separate probe: the SDK has no cheap call, so the breaker guards the run."""
+
     def close(self) -> None:
         with self._lock:
             for client in self._clients:
@@ -198,7 +202,7 @@ def _raise_api_error(exc: Any) -> NoReturn:
     retry_after = headers.get("retry-after")
     if retry_after is None:
         retry_after = _retry_info_delay(exc.details)
-    message = " ".join(str(exc.message or exc.status or "").split())[:200]
+    message = redact(" ".join(str(exc.message or exc.status or "").split())[:200])
     check_status(int(exc.code or 500), retry_after, message)
     raise FinalError(f"HTTP {exc.code}: {message}")  # a non-error status cannot get here
 
@@ -230,7 +234,9 @@ def _reply(resp: Any) -> Reply:
         tokens = {"prompt": prompt, "completion": completion,
                   "total": usage.total_token_count or prompt + completion}
     text = resp.text if resp.candidates else None
-    return Reply(text, tokens, note)
+    served = getattr(resp, "model_version", None)
+    return Reply(text, tokens, note, truncated=note == "finish_reason=MAX_TOKENS",
+                 model=served if isinstance(served, str) else None)
 
 
 def _transient_errors() -> tuple[type[BaseException], ...]:

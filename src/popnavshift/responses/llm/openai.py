@@ -16,18 +16,12 @@ from typing import Any
 
 import httpx
 
+from ...redact import redact
 from ..prompt import SYSTEM_PROMPT, build_prompt
 from ..schema import response_json_schema
-from .transport import (
-    REASK,
-    LLMRespondent,
-    Reply,
-    RetryableError,
-    check_setting,
-    check_status,
-    env_key,
-    is_http_url,
-)
+from .readiness import NotReady
+from .retries import Reply, RetryableError, check_status
+from .transport import REASK, LLMRespondent, check_setting, env_key, is_http_url
 
 
 class OpenAIRespondent(LLMRespondent):
@@ -57,12 +51,16 @@ class OpenAIRespondent(LLMRespondent):
         max_reasks: int = 2,
         backoff_base: float = 0.5,
         backoff_cap: float = 30.0,
+        max_tokens: int | None = None,
+        ready_timeout: float = 30.0,
+        max_consecutive_failures: int = 5,
     ) -> None:
         super().__init__(
             model=model, temperature=temperature, seed=seed, replicate=replicate,
             cache_path=cache_path, max_concurrency=max_concurrency, rate_limit=rate_limit,
             timeout=timeout, max_retries=max_retries, max_reasks=max_reasks,
-            backoff_base=backoff_base, backoff_cap=backoff_cap,
+            backoff_base=backoff_base, backoff_cap=backoff_cap, max_tokens=max_tokens,
+            ready_timeout=ready_timeout, max_consecutive_failures=max_consecutive_failures,
         )
         self.base_url = base_url
         self.api_key_env = api_key_env
@@ -79,7 +77,8 @@ class OpenAIRespondent(LLMRespondent):
     def _api_key(self) -> str | None:
         return env_key(self.api_key_env) if self.api_key_env else None
 
-    def _body(self, persona: Mapping[str, Any], reasks: Sequence[tuple[str, str]]) -> dict:
+    def _body(self, persona: Mapping[str, Any], reasks: Sequence[tuple[str, str]],
+              max_tokens: int | None = None) -> dict:
         messages = [
             {"role": "system", "content": SYSTEM_PROMPT},
             {"role": "user", "content": build_prompt(persona)},
@@ -100,17 +99,23 @@ class OpenAIRespondent(LLMRespondent):
             body["temperature"] = self.temperature
         if self.seed is not None:
             body["seed"] = self.seed
+        limit = max_tokens or self.max_tokens
+        if limit is not None:
+            body["max_tokens"] = limit
         return body
 
     def _connect(self, key: str | None) -> _ChatSession:
-        return _ChatSession(self.endpoint, key, self.timeout, self.max_concurrency)
+        return _ChatSession(self.endpoint, key, self.timeout, self.max_concurrency,
+                            self.base_url.rstrip("/") + "/models")
 
 
 class _ChatSession:
     """One pooled httpx client shared by the worker threads (httpx.Client is thread-safe)."""
 
-    def __init__(self, url: str, key: str | None, timeout: float, connections: int) -> None:
+    def __init__(self, url: str, key: str | None, timeout: float, connections: int,
+                 models_url: str) -> None:
         self.url = url
+        self.models_url = models_url
         self.timeout = timeout
         headers = {"Authorization": f"Bearer {key}"} if key else {}
         self._client = httpx.Client(
@@ -135,6 +140,7 @@ class _ChatSession:
             raise RetryableError("malformed response body") from None
         finish = choice.get("finish_reason")
         note = None if finish in (None, "stop") else f"finish_reason={finish}"
+        served = data.get("model") if isinstance(data.get("model"), str) else None
         if message.get("refusal"):
             note = f"refusal: {message['refusal']}"
         tokens = {
@@ -142,7 +148,22 @@ class _ChatSession:
             "completion": usage.get("completion_tokens") or 0,
             "total": usage.get("total_tokens") or 0,
         }
-        return Reply(message.get("content"), tokens, note)
+        return Reply(message.get("content"), tokens, note, truncated=finish == "length",
+                     model=served)
+
+    def check_ready(self) -> None:
+        """``GET {base_url}/models``: 2xx is ready; a server without that route (404,
+        405, 501) is taken as ready and the first request tells; 401/403 is final."""
+        try:
+            resp = self._client.get(self.models_url)
+        except httpx.TimeoutException:
+            raise NotReady(f"no reply within {self.timeout:g} s") from None
+        except httpx.TransportError as exc:
+            raise NotReady(f"connection error ({type(exc).__name__})") from None
+        if resp.status_code < 400 or resp.status_code in (404, 405, 501):
+            return
+        raise NotReady(f"GET /models: HTTP {resp.status_code}: {_error_message(resp)}",
+                       fatal=resp.status_code in (401, 403))
 
     def close(self) -> None:
         self._client.close()
@@ -156,4 +177,4 @@ def _error_message(resp: httpx.Response) -> str:
     except (ValueError, AttributeError):
         msg = None
     text = str(msg) if msg else resp.text
-    return " ".join(text.split())[:200] or resp.reason_phrase
+    return redact(" ".join(text.split())[:200] or resp.reason_phrase)

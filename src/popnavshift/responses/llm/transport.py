@@ -2,7 +2,7 @@
 
 Two loops, kept apart (SPEC §3):
 
-* **Transport retries** (:func:`send_with_retries`): HTTP 408/429/5xx, timeouts
+* **Transport retries** (:func:`.retries.send_with_retries`): HTTP 408/429/5xx, timeouts
   and connection errors are retried up to ``max_retries`` times, waiting the
   server's ``Retry-After`` when given (capped at :data:`MAX_RETRY_AFTER`) and
   otherwise ``min(backoff_cap, backoff_base * 2**(retry - 1))`` seconds. There is
@@ -24,164 +24,40 @@ of the record's *first* request, so a second identical run makes no call.
 
 from __future__ import annotations
 
-import email.utils
 import logging
 import math
 import os
 import threading
-import time
 from abc import abstractmethod
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field, replace
 from functools import partial
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 from ...errors import ConfigError, MissingKeyError, RespondentError, TransportError
+from ...redact import redact, register_secret
 from ..probes import PROBE_SET_HASH
 from ..respondent import Answer, ProbeRequest, Progress, Respondent
 from ..schema import parse_answer
 from .cache import CacheStats, ResponseCache, request_key
+from .readiness import Breaker, wait_until_ready
+from .retries import (
+    RateLimiter,
+    RetryPolicy,
+    Session,
+    TransportFailure,
+    add_tokens,
+    send_with_retries,
+)
 
 log = logging.getLogger("popnavshift.responses.llm")
-
-#: Longest ``Retry-After`` honoured (s); a longer one is shortened to this.
-MAX_RETRY_AFTER = 300.0
-RETRY_STATUSES = frozenset({408, 429, 500, 502, 503, 504})
-FATAL_STATUSES = frozenset({401, 403, 404})
 
 REASK = (
     "Your previous reply was not valid: {error}. Reply again with only the JSON object "
     "matching the schema, with every encounter and every item."
 )
-
-
-class RetryableError(Exception):
-    """Raised by a session for a failure worth retrying (``reason`` is one line)."""
-
-    def __init__(self, reason: str, retry_after: float | None = None) -> None:
-        super().__init__(reason)
-        self.reason = reason
-        self.retry_after = retry_after
-
-
-class FinalError(Exception):
-    """Raised by a session for a failure that retrying cannot fix."""
-
-    def __init__(self, reason: str, *, fatal: bool = False) -> None:
-        super().__init__(reason)
-        self.reason = reason
-        self.fatal = fatal  # wrong for every record: stop the run
-
-
-class TransportFailure(TransportError):
-    """The transport gave up on one request after ``calls`` network calls."""
-
-    def __init__(self, message: str, *, calls: int, fatal: bool = False) -> None:
-        super().__init__(message)
-        self.calls = calls
-        self.fatal = fatal
-
-
-@dataclass
-class Reply:
-    """What one successful HTTP exchange returned."""
-
-    text: str | None
-    tokens: dict[str, int] = field(default_factory=dict)  # prompt, completion, total
-    note: str | None = None  # why the text may be incomplete (finish reason, refusal)
-
-
-class Session(Protocol):
-    def send(self, body: dict[str, Any]) -> Reply: ...
-
-    def close(self) -> None: ...
-
-
-def check_status(status: int, retry_after: str | None, message: str) -> None:
-    """Raise RetryableError/FinalError for a non-2xx HTTP status."""
-    if status < 400:
-        return
-    if status in RETRY_STATUSES or status >= 500:
-        raise RetryableError(f"HTTP {status}", parse_retry_after(retry_after))
-    raise FinalError(f"HTTP {status}: {message}", fatal=status in FATAL_STATUSES)
-
-
-def parse_retry_after(value: str | None) -> float | None:
-    """Seconds to wait from a ``Retry-After`` header (delta-seconds or HTTP date)."""
-    if value is None or not value.strip():
-        return None
-    try:
-        seconds = float(value)
-    except ValueError:
-        try:
-            when = email.utils.parsedate_to_datetime(value)
-        except (TypeError, ValueError):
-            return None
-        seconds = when.timestamp() - time.time()
-    return seconds if math.isfinite(seconds) and seconds > 0 else 0.0
-
-
-@dataclass(frozen=True)
-class RetryPolicy:
-    """Bounded exponential backoff; times in s."""
-
-    max_retries: int = 5
-    backoff_base: float = 0.5
-    backoff_cap: float = 30.0
-
-    def delay(self, retry: int, retry_after: float | None = None) -> float:
-        """Wait before retry number ``retry`` (1-based); ``Retry-After`` wins when given."""
-        if retry_after is not None:
-            return min(retry_after, MAX_RETRY_AFTER)
-        return min(self.backoff_cap, self.backoff_base * 2 ** (retry - 1))
-
-
-class RateLimiter:
-    """At most ``rate`` call starts per second across threads (None = unlimited)."""
-
-    def __init__(self, rate: float | None) -> None:
-        self.interval = 0.0 if rate is None else 1.0 / rate
-        self._next = 0.0
-        self._lock = threading.Lock()
-
-    def wait(self) -> None:
-        if self.interval == 0.0:
-            return
-        with self._lock:
-            now = time.monotonic()
-            slot = max(now, self._next)
-            self._next = slot + self.interval
-        if slot > now:
-            time.sleep(slot - now)
-
-
-def send_with_retries(
-    send: Callable[[], Reply], policy: RetryPolicy, limiter: RateLimiter
-) -> tuple[Reply, int]:
-    """``(reply, calls)``; raises :class:`TransportFailure` once retries are spent."""
-    calls = 0
-    while True:
-        limiter.wait()
-        calls += 1
-        try:
-            return send(), calls
-        except RetryableError as exc:
-            if calls > policy.max_retries:
-                raise TransportFailure(
-                    f"{exc.reason} after {policy.max_retries} retries", calls=calls
-                ) from None
-            wait = policy.delay(calls, exc.retry_after)
-            log.info("%s; retry %d/%d in %.2f s", exc.reason, calls, policy.max_retries, wait)
-            time.sleep(wait)
-        except FinalError as exc:
-            raise TransportFailure(exc.reason, calls=calls, fatal=exc.fatal) from None
-
-
-def add_tokens(total: dict[str, int], more: Mapping[str, int]) -> None:
-    for k in ("prompt", "completion", "total"):
-        total[k] = total.get(k, 0) + int(more.get(k) or 0)
 
 
 @dataclass
@@ -191,13 +67,17 @@ class _Run:
     session: Session
     cache: ResponseCache | None
     limiter: RateLimiter
-    secret: str | None
+    breaker: Breaker
     fatal: TransportFailure | None = None
     lock: threading.Lock = field(default_factory=threading.Lock)
 
-    def redact(self, text: str) -> str:
+    def stopped(self) -> bool:
+        return self.fatal is not None or self.breaker.tripped is not None
+
+    @staticmethod
+    def redact(text: str) -> str:
         # Defence in depth: servers sometimes echo credentials in error bodies.
-        return text.replace(self.secret, "***") if self.secret else text
+        return redact(text)
 
 
 class LLMRespondent(Respondent):
@@ -222,6 +102,9 @@ class LLMRespondent(Respondent):
         max_reasks: int = 2,
         backoff_base: float = 0.5,
         backoff_cap: float = 30.0,
+        max_tokens: int | None = None,
+        ready_timeout: float = 30.0,
+        max_consecutive_failures: int = 5,
     ) -> None:
         self._model = model
         self.temperature = temperature
@@ -235,6 +118,9 @@ class LLMRespondent(Respondent):
         self.max_reasks = max_reasks
         self.backoff_base = backoff_base
         self.backoff_cap = backoff_cap
+        self.max_tokens = max_tokens  # None: the server's default limit
+        self.ready_timeout = ready_timeout
+        self.max_consecutive_failures = max_consecutive_failures
         self.cache_stats: CacheStats | None = None  # counts of the last answer_all
 
     @property
@@ -251,8 +137,10 @@ class LLMRespondent(Respondent):
         """The key from the environment; raise MissingKeyError naming the variable."""
 
     @abstractmethod
-    def _body(self, persona: Mapping[str, Any], reasks: Sequence[tuple[str, str]]) -> dict:
-        """The exact request body; ``reasks`` holds (invalid raw reply, error) turns."""
+    def _body(self, persona: Mapping[str, Any], reasks: Sequence[tuple[str, str]],
+              max_tokens: int | None = None) -> dict:
+        """The exact request body; ``reasks`` holds (invalid raw reply, error) turns;
+        ``max_tokens`` overrides :attr:`max_tokens` (a retry after a truncated reply)."""
 
     @abstractmethod
     def _connect(self, key: str | None) -> Session:
@@ -262,7 +150,8 @@ class LLMRespondent(Respondent):
         return {
             "respondent": self.name, "model": self.model, "endpoint": self.endpoint,
             "temperature": self.temperature, "seed": self.seed, "replicate": self.replicate,
-            "max_reasks": self.max_reasks, "probe_set": PROBE_SET_HASH,
+            "max_reasks": self.max_reasks, "max_tokens": self.max_tokens,
+            "probe_set": PROBE_SET_HASH,
         }
 
     def validate(self) -> None:
@@ -279,6 +168,12 @@ class LLMRespondent(Respondent):
             ("replicate", _is_int(self.replicate, 0), "an int ≥ 0"),
             ("backoff_base", _is_pos(self.backoff_base) or self.backoff_base == 0, "seconds ≥ 0"),
             ("backoff_cap", _is_pos(self.backoff_cap) or self.backoff_cap == 0, "seconds ≥ 0"),
+            ("max_tokens", self.max_tokens is None or _is_int(self.max_tokens, 1),
+             "None or an int ≥ 1"),
+            ("ready_timeout", _is_pos(self.ready_timeout) or self.ready_timeout == 0,
+             "seconds ≥ 0"),
+            ("max_consecutive_failures", _is_int(self.max_consecutive_failures, 1),
+             "an int ≥ 1"),
         ]
         for name, ok, expected in checks:
             check_setting(ok, name, expected, getattr(self, name))
@@ -337,9 +232,12 @@ class LLMRespondent(Respondent):
         tick: Progress,
     ) -> None:
         secret = self._api_key()  # MissingKeyError before any network call
-        run = _Run(self._connect(secret), cache, RateLimiter(self.rate_limit), secret)
+        run = _Run(self._connect(secret), cache, RateLimiter(self.rate_limit),
+                   Breaker(self.max_consecutive_failures))
         pool = ThreadPoolExecutor(self.max_concurrency, "popnavshift-llm")
         try:
+            wait_until_ready(run.session.check_ready, f"{self.name} server {self.endpoint}",
+                             self.ready_timeout)
             futures = {pool.submit(self._ask, requests[i], keys[i], run): i for i in todo}
             for fut in as_completed(futures):
                 answers[futures[fut]] = fut.result()
@@ -352,6 +250,12 @@ class LLMRespondent(Respondent):
             raise TransportError(
                 f"{self.name}: {run.fatal} from {self.endpoint}",
                 hint="check the API key, the model name and base_url",
+            )
+        if run.breaker.tripped is not None:
+            raise TransportError(
+                f"{self.name}: stopped: {run.breaker.tripped} at {self.endpoint}",
+                hint="check the server (-v shows every retry); --max-failures sets the "
+                "threshold",
             )
 
     def _key(self, body: dict) -> str:
@@ -366,49 +270,68 @@ class LLMRespondent(Respondent):
         # A hit reports how the stored answer was obtained (attempts, tokens), so the
         # responses table does not depend on cache state; calls=0 says nothing was sent.
         return Answer(req.persona_id, req.variant, answer=hit.answer, raw=hit.raw, calls=0,
-                      attempts=hit.attempts, cached=True, tokens=dict(hit.tokens))
+                      attempts=hit.attempts, cached=True, tokens=dict(hit.tokens),
+                      served_model=hit.served_model)
 
     def _ask(self, req: ProbeRequest, key: str, run: _Run) -> Answer:
-        """One record: up to 1 + max_reasks content attempts, each with transport retries."""
+        """One record: up to 1 + max_reasks content attempts, each with transport retries.
+
+        A reply cut at the token limit is not re-asked with the same limit (it would be
+        cut again): the request is sent again with twice the limit, or, when no limit
+        was set (the server's own), the record fails with a hint to set one."""
         ans = Answer(req.persona_id, req.variant, tokens={"prompt": 0, "completion": 0, "total": 0})
         policy = RetryPolicy(self.max_retries, self.backoff_base, self.backoff_cap)
         reasks: list[tuple[str, str]] = []
+        limit = self.max_tokens
         for attempt in range(self.max_reasks + 1):
-            if run.fatal is not None:
-                ans.error = f"skipped: {run.fatal}"
+            if run.stopped():
+                ans.error = f"skipped: {run.fatal or run.breaker.tripped}"
                 return ans
-            body = self._body(req.persona, reasks)
+            body = self._body(req.persona, reasks, limit)
             ans.attempts = attempt + 1
             try:
                 reply, calls = send_with_retries(partial(run.session.send, body), policy,
-                                                 run.limiter)
+                                                 run.limiter, run.stopped)
             except TransportFailure as exc:
                 ans.calls += exc.calls
                 ans.error = run.redact(f"transport: {exc}")
                 if exc.fatal:
                     with run.lock:
                         run.fatal = run.fatal or exc
+                run.breaker.record(str(exc))
                 self._log_failure(run, req, body, ans.error, None)
                 return ans
+            run.breaker.record(None)
             ans.calls += calls
+            ans.served_model = reply.model or ans.served_model
             add_tokens(ans.tokens, reply.tokens)
             raw = run.redact(reply.text or "")
             try:
                 ans.answer = parse_answer(raw)
             except RespondentError as exc:
                 error = str(exc) if reply.note is None else f"{exc}; {reply.note}"
-                log.warning("%s %s: invalid reply (attempt %d/%d): %s", req.persona_id,
+                # info, not warning: the records that stay invalid are listed at the end
+                log.info("%s %s: invalid reply (attempt %d/%d): %s", req.persona_id,
                             req.variant, attempt + 1, self.max_reasks + 1, error)
                 self._log_failure(run, req, body, error, raw)
-                reasks.append((raw, error))
                 ans.raw = raw
+                if reply.truncated:
+                    if limit is None:
+                        ans.error = (f"reply cut at the server's token limit ({reply.note}); "
+                                     "set max_tokens (--max-tokens) to allow longer replies")
+                        return ans
+                    limit *= 2  # the same request with room to finish, not a re-ask
+                    continue
+                reasks.append((raw, error))
                 continue
             ans.raw = raw
             if run.cache is not None:
                 run.cache.put(key, persona_id=req.persona_id, variant=req.variant,
-                              model=self.model, raw=raw, attempts=ans.attempts, tokens=ans.tokens)
+                              model=self.model, raw=raw, attempts=ans.attempts, tokens=ans.tokens,
+                              served_model=ans.served_model)
             return ans
-        ans.error = f"invalid after {ans.attempts} attempts: {reasks[-1][1]}"
+        last = reasks[-1][1] if reasks else "reply cut at the token limit"
+        ans.error = f"invalid after {ans.attempts} attempts: {last}"
         return ans
 
     def _log_failure(self, run: _Run, req: ProbeRequest, body: dict, error: str,
@@ -429,6 +352,7 @@ def env_key(*names: str) -> str:
     for name in names:
         value = os.environ.get(name, "").strip()
         if value:
+            register_secret(value)  # masked in every message and log from now on
             return value
     listed = " or ".join(names)
     raise MissingKeyError(

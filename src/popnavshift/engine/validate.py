@@ -1,0 +1,104 @@
+"""Check a study against what exists before anything runs.
+
+``popnavshift plan`` and ``popnavshift run`` call :func:`validate_study` first, so a
+typo fails in seconds, before the persona and probe stages (which, with an LLM
+respondent, cost money), instead of after them or, worse, silently:
+
+* a width, density, robot speed or variant that is not in the built-in grid would
+  match no episode and quietly shrink the study; it is rejected with the values
+  that exist and a did-you-mean (the grid is fixed by the paper's design, so a new
+  value is a new scene design, not a study setting);
+* a part whose filters together match no episode is one clear error;
+* controllers, backends, mappings and the respondent (with its options) are
+  resolved by name now, not when their stage is reached.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+from ..errors import ConfigError, UnknownNameError
+from .plan import select_episodes
+from .study import EpisodeSelection, Study
+
+#: selection field → (episode attribute, the word used in messages)
+GRID_FIELDS = {
+    "widths": ("width", "width"),
+    "densities": ("density", "density"),
+    "robot_speeds": ("robot_speed", "robot speed"),
+    "variants": ("variant", "variant"),
+}
+
+
+def validate_study(study: Study, episodes: Iterable) -> None:
+    """Raise ConfigError for the first value of ``study`` that cannot run."""
+    eps = list(episodes)
+    for name, part in study.parts.items():
+        where = f"study {study.name}: part {name}"
+        check_grid_values(part.episodes, eps, where)
+        if not select_episodes(part.episodes, eps):
+            raise ConfigError(f"{where}: its episode filters together match no episode",
+                              hint="`popnavshift episodes` lists the grid")
+    _check_names(study)
+
+
+def check_grid_values(selection: EpisodeSelection, episodes: Sequence, where: str) -> None:
+    """Every filter value must exist among the episodes of the selected scenes."""
+    scenes = selection.scenes
+    pool = [e for e in episodes if scenes is None or e.scene in scenes]
+    for field, (attr, word) in GRID_FIELDS.items():
+        wanted = getattr(selection, field)
+        known = sorted({getattr(e, attr) for e in pool})
+        for value in (wanted or ()) if known else ():  # no scene: the caller says so
+            if not any(abs(float(value) - float(k)) < 1e-9 for k in known):
+                closest = min(known, key=lambda k: abs(float(k) - float(value)))
+                of = f" of {', '.join(scenes)}" if scenes else ""
+                raise ConfigError(
+                    f"{where}: {word} {value!r} is not in the grid{of}; known: "
+                    f"{', '.join(repr(k) for k in known)}",
+                    hint=f"did you mean {closest!r}?",
+                )
+
+
+def _check_names(study: Study) -> None:
+    from ..plugins import make_backend, make_controller
+
+    controllers = {c for part in study.parts.values() for c in part.controllers}
+    for controller in sorted(controllers):
+        make_controller(controller)
+    for backend in sorted({b for part in study.parts.values() for b in part.backends}):
+        make_backend(backend)
+    known = known_mappings(study)
+    for name, part in study.parts.items():
+        for mapping in part.mappings:
+            if mapping not in known:
+                raise UnknownNameError(f"mapping (part {name})", mapping, known)
+    _check_respondent(study.respondent.name, study.respondent.options)
+    if study.respondent2 is not None:
+        _check_respondent(study.respondent2.name, study.respondent2.options)
+
+
+def known_mappings(study: Study) -> list[str]:
+    """Profile-set labels the study's population stage can build."""
+    from ..populations.perturb import BLOCKS, label
+    from ..profiles.mappings import MAPPINGS
+
+    for mapping in study.mappings:
+        if mapping not in MAPPINGS:
+            raise UnknownNameError("mapping (study mappings)", mapping, MAPPINGS.names())
+    known = ["A", *study.mappings, label("reassign"), label("shuffle")]
+    known += [label("block", block) for block in BLOCKS]
+    if study.respondent2 is not None:
+        known.append(f"A~{study.respondent2.name}-2")
+    return sorted(set(known))
+
+
+def _check_respondent(name: str, options: dict[str, Any]) -> None:
+    """Build the respondent (no call is made) and check its settings."""
+    from ..plugins import make_respondent
+
+    respondent = make_respondent(name, **options)
+    validate = getattr(respondent, "validate", None)
+    if callable(validate):
+        validate()

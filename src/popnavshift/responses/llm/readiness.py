@@ -1,0 +1,88 @@
+"""Fail fast when the server is down: a readiness wait before the batch, a circuit
+breaker during it.
+
+Without these, an unreachable or broken server costs every record its full retry
+budget (``max_retries`` backoffs each) and the run ends with zero valid answers
+after many minutes. Instead:
+
+* :func:`wait_until_ready` asks the session whether the server answers (for an
+  OpenAI-compatible server, ``GET {base_url}/models``) before the first record is
+  sent. A local server that is starting or loading its model refuses connections
+  or replies 503 for a while, so "not yet" is retried until ``ready_timeout`` s;
+  a rejected key (401/403) stops at once.
+* :class:`Breaker` counts records that failed at the transport level (every retry
+  spent) in a row; at ``threshold`` it trips, and the run stops with one error
+  instead of trying the remaining records.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from ...errors import TransportError
+
+log = logging.getLogger("popnavshift.responses.llm")
+
+#: longest pause between two readiness checks (s)
+MAX_READY_POLL = 2.0
+
+
+class NotReady(Exception):
+    """The server does not answer yet (``reason`` is one line)."""
+
+    def __init__(self, reason: str, *, fatal: bool = False) -> None:
+        super().__init__(reason)
+        self.reason = reason
+        self.fatal = fatal  # retrying cannot help (a rejected key)
+
+
+def wait_until_ready(check: Callable[[], None], where: str, ready_timeout: float) -> None:
+    """Call ``check`` until it returns (ready), for at most ``ready_timeout`` s.
+
+    ``check`` raises :class:`NotReady` while the server is not ready. Raises
+    TransportError naming ``where`` when the wait runs out or the failure is final.
+    """
+    deadline = time.monotonic() + ready_timeout
+    pause = 0.25
+    while True:
+        try:
+            check()
+            return
+        except NotReady as exc:
+            left = deadline - time.monotonic()
+            if exc.fatal or left <= 0:
+                waited = "" if exc.fatal else f" after waiting {ready_timeout:g} s"
+                raise TransportError(
+                    f"{where} is not ready{waited}: {exc.reason}",
+                    hint="check the server and base_url"
+                    + ("" if exc.fatal else "; --ready-timeout sets the wait"),
+                ) from None
+            log.info("%s not ready (%s); checking again in %.2f s", where, exc.reason,
+                     min(pause, left))
+            time.sleep(min(pause, left))
+            pause = min(MAX_READY_POLL, pause * 2)
+
+
+@dataclass
+class Breaker:
+    """Trips after ``threshold`` records in a row failed at the transport level."""
+
+    threshold: int
+    in_a_row: int = 0
+    tripped: str | None = None  # why, once tripped
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def record(self, failure: str | None) -> None:
+        """Count one finished record: ``failure`` is its transport error, None if the
+        server replied."""
+        with self.lock:
+            if failure is None:
+                self.in_a_row = 0
+                return
+            self.in_a_row += 1
+            if self.in_a_row >= self.threshold and self.tripped is None:
+                self.tripped = f"{self.in_a_row} records in a row failed (last: {failure})"

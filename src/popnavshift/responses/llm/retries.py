@@ -1,0 +1,163 @@
+"""Transport retries: which failures are retried, how long to wait, how fast to send.
+
+HTTP 408/429/5xx, timeouts and connection errors are retried up to ``max_retries``
+times (:func:`send_with_retries`), waiting the server's ``Retry-After`` when given
+(capped at :data:`MAX_RETRY_AFTER`) and otherwise
+``min(backoff_cap, backoff_base * 2**(retry - 1))`` seconds; other 4xx replies are
+final. A session (one per run, :class:`Session`) turns one HTTP exchange into a
+:class:`Reply` or raises :class:`RetryableError` / :class:`FinalError`.
+"""
+
+from __future__ import annotations
+
+import email.utils
+import logging
+import math
+import threading
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+from ...errors import TransportError
+from ...redact import redact
+
+log = logging.getLogger("popnavshift.responses.llm")
+
+#: Longest ``Retry-After`` honoured (s); a longer one is shortened to this.
+MAX_RETRY_AFTER = 300.0
+RETRY_STATUSES = frozenset({408, 429, 500, 502, 503, 504})
+FATAL_STATUSES = frozenset({401, 403, 404})
+
+class RetryableError(Exception):
+    """Raised by a session for a failure worth retrying (``reason`` is one line)."""
+
+    def __init__(self, reason: str, retry_after: float | None = None) -> None:
+        super().__init__(reason)
+        self.reason = reason
+        self.retry_after = retry_after
+
+
+class FinalError(Exception):
+    """Raised by a session for a failure that retrying cannot fix."""
+
+    def __init__(self, reason: str, *, fatal: bool = False) -> None:
+        super().__init__(reason)
+        self.reason = reason
+        self.fatal = fatal  # wrong for every record: stop the run
+
+
+class TransportFailure(TransportError):
+    """The transport gave up on one request after ``calls`` network calls."""
+
+    def __init__(self, message: str, *, calls: int, fatal: bool = False) -> None:
+        super().__init__(redact(message))  # servers echo credentials in error bodies
+        self.calls = calls
+        self.fatal = fatal
+
+
+@dataclass
+class Reply:
+    """What one successful HTTP exchange returned."""
+
+    text: str | None
+    tokens: dict[str, int] = field(default_factory=dict)  # prompt, completion, total
+    note: str | None = None  # why the text may be incomplete (finish reason, refusal)
+    truncated: bool = False  # cut at the token limit (finish_reason length / MAX_TOKENS)
+    model: str | None = None  # the model that served the request, as the server names it
+
+
+class Session(Protocol):
+    def send(self, body: dict[str, Any]) -> Reply: ...
+
+    def check_ready(self) -> None:
+        """Return when the server answers; raise :class:`~.readiness.NotReady` otherwise."""
+
+    def close(self) -> None: ...
+
+
+def check_status(status: int, retry_after: str | None, message: str) -> None:
+    """Raise RetryableError/FinalError for a non-2xx HTTP status."""
+    if status < 400:
+        return
+    if status in RETRY_STATUSES or status >= 500:
+        raise RetryableError(f"HTTP {status}", parse_retry_after(retry_after))
+    raise FinalError(f"HTTP {status}: {message}", fatal=status in FATAL_STATUSES)
+
+
+def parse_retry_after(value: str | None) -> float | None:
+    """Seconds to wait from a ``Retry-After`` header (delta-seconds or HTTP date)."""
+    if value is None or not value.strip():
+        return None
+    try:
+        seconds = float(value)
+    except ValueError:
+        try:
+            when = email.utils.parsedate_to_datetime(value)
+        except (TypeError, ValueError):
+            return None
+        seconds = when.timestamp() - time.time()
+    return seconds if math.isfinite(seconds) and seconds > 0 else 0.0
+
+
+@dataclass(frozen=True)
+class RetryPolicy:
+    """Bounded exponential backoff; times in s."""
+
+    max_retries: int = 5
+    backoff_base: float = 0.5
+    backoff_cap: float = 30.0
+
+    def delay(self, retry: int, retry_after: float | None = None) -> float:
+        """Wait before retry number ``retry`` (1-based); ``Retry-After`` wins when given."""
+        if retry_after is not None:
+            return min(retry_after, MAX_RETRY_AFTER)
+        return min(self.backoff_cap, self.backoff_base * 2 ** (retry - 1))
+
+
+class RateLimiter:
+    """At most ``rate`` call starts per second across threads (None = unlimited)."""
+
+    def __init__(self, rate: float | None) -> None:
+        self.interval = 0.0 if rate is None else 1.0 / rate
+        self._next = 0.0
+        self._lock = threading.Lock()
+
+    def wait(self) -> None:
+        if self.interval == 0.0:
+            return
+        with self._lock:
+            now = time.monotonic()
+            slot = max(now, self._next)
+            self._next = slot + self.interval
+        if slot > now:
+            time.sleep(slot - now)
+
+
+def send_with_retries(
+    send: Callable[[], Reply], policy: RetryPolicy, limiter: RateLimiter,
+    stopped: Callable[[], bool] = lambda: False,
+) -> tuple[Reply, int]:
+    """``(reply, calls)``; raises :class:`TransportFailure` once retries are spent, or
+    before a retry once ``stopped()`` (the run is being stopped)."""
+    calls = 0
+    while True:
+        limiter.wait()
+        calls += 1
+        try:
+            return send(), calls
+        except RetryableError as exc:
+            if calls > policy.max_retries or stopped():
+                spent = f"after {policy.max_retries} retries" if calls > policy.max_retries \
+                    else "(run stopped)"
+                raise TransportFailure(f"{exc.reason} {spent}", calls=calls) from None
+            wait = policy.delay(calls, exc.retry_after)
+            log.info("%s; retry %d/%d in %.2f s", exc.reason, calls, policy.max_retries, wait)
+            time.sleep(wait)
+        except FinalError as exc:
+            raise TransportFailure(exc.reason, calls=calls, fatal=exc.fatal) from None
+
+
+def add_tokens(total: dict[str, int], more: Mapping[str, int]) -> None:
+    for k in ("prompt", "completion", "total"):
+        total[k] = total.get(k, 0) + int(more.get(k) or 0)
