@@ -218,9 +218,9 @@ def test_changed_inputs_never_reuse_old_shards(tmp_path, reference):
 
 
 def test_a_part_repeats_on_extra_seed_sets_and_the_report_shows_the_spread(tmp_path):
+    from popnavshift.analysis.study_robustness import seed_spread
+    from popnavshift.engine.folder import read_study_folder
     from popnavshift.episodes.specs import get_episode
-    from popnavshift.report.build import read_study_folder
-    from popnavshift.report.robustness import seed_spread
 
     data = yaml.safe_load(yaml.safe_dump(TINY))
     data["parts"]["main"]["episodes"]["scenes"] = ["sidewalk", "bottleneck"]

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from popnavshift.evaluate.card import card_tables, render_html
-from popnavshift.evaluate.verdict import card_evidence, population_order, verdict
+from popnavshift.evaluate.verdict import card_evidence, verdict
+from popnavshift.populations.build import population_order
 from synth_study import crossover, no_effect, synthetic_study
 
 BASELINES = ("b", "c")

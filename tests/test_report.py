@@ -23,11 +23,12 @@ from popnavshift.analysis import (
     paper_findings,
     reversal_table,
 )
+from popnavshift.analysis.study import analyse
+from popnavshift.engine.folder import main_grid, read_study_folder
 from popnavshift.engine.runner import run_study
 from popnavshift.engine.study import study_from_dict
 from popnavshift.errors import InputError
 from popnavshift.report import build_report
-from popnavshift.report.build import analyse, main_grid, read_study_folder
 
 N_BOOT = 200
 #: Like the built-in quick study (pinned here so its edits cannot break these tests):
@@ -229,16 +230,16 @@ def test_replays_reproduce_their_stored_runs(quick):
 
 def test_a_run_that_cannot_be_resimulated_is_reported_not_fatal(quick, tmp_path, monkeypatch):
     from popnavshift.errors import PopNavShiftError
-    from popnavshift.report import build
+    from popnavshift.report import replays
 
     def fail(*args, **kwargs):
         raise PopNavShiftError("controller raised")
 
-    monkeypatch.setattr(build, "resimulate", fail)
+    monkeypatch.setattr(replays, "resimulate", fail)
     study = read_study_folder(quick)
     runs, peds, _ = main_grid(study)
     a = analyse(runs, peds, n_boot=10)
-    reps = build.write_replays(study, a, runs, peds, tmp_path, 1)
+    reps = replays.write_replays(study, a, runs, peds, tmp_path, 1)
     assert reps is not None and not reps["reproduced"].any()
     assert reps["differences"].str.startswith("could not re-simulate: controller raised").all()
     assert list(tmp_path.iterdir()) == []

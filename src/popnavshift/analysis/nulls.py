@@ -7,9 +7,13 @@ population laid out together (:func:`popnavshift.analysis.significance.orderings
 so one paired episode bootstrap is shared by the observed and null populations):
 
 * **observed** rate and each null replicate's rate, raw and significant;
-* **excess** = observed − mean of the null rates, with a percentile interval from
-  the shared episode bootstrap (observed and null rates recomputed on every
-  resample: excess_b = obs_b − mean_k null_{k,b});
+* **excess** = observed − mean of the null rates, with an interval from the shared
+  episode bootstrap (observed and null rates recomputed on every resample:
+  excess_b = obs_b − mean_k null_{k,b}): excess ± z · √(n/(n−1)) · SD_b(excess_b), n the
+  episodes per cell. Centred on the estimate, not the percentile interval: with few
+  episodes per cell a resample that repeats an episode carries more noise and so
+  reverses more, which shifts the resampled rates (their spread is sound, their centre
+  is not); √(n/(n−1)) undoes the plug-in variance's bias;
 * **p-value** = (1 + #{null_k ≥ observed}) / (1 + P), the permutation p-value of
   P null replicates (exact for the swap null, whose replicates are exchangeable
   with the observed pair under the null).
@@ -24,6 +28,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
+from scipy import stats
 
 from ..populations.nulls import SIZED_SOURCE, parse_null, sized_name, swap_name
 from .reversals import MATCHED, population_pairs
@@ -78,23 +83,32 @@ def null_test(o: Orderings, observed: Sequence[tuple[str, str]],
     """
     obs = pair_counts(o, observed)
     reps = [pair_counts(o, pairs) for pairs in nulls]
+    n = episodes_per_cell(o)
     out = []
     for rule in RULES:
-        row, boot = excess_over(obs, reps, rule, ci_level=ci_level)
+        row, boot = excess_over(obs, reps, rule, ci_level=ci_level, n_episodes=n)
         out.append({"metric": o.metric, "rule": rule, **row, "boot_excess": boot})
     return out
 
 
+def episodes_per_cell(o: Orderings) -> float:
+    """The median number of episodes per cell of a design (the bootstrap's sample size)."""
+    n = o.n_episodes[o.n_episodes > 0]
+    return float(np.median(n)) if n.size else float("nan")
+
+
 def excess_over(obs: PairCounts, reps: Sequence[PairCounts], rule: str, *,
-                ci_level: float = CI_LEVEL) -> tuple[dict, np.ndarray]:
+                ci_level: float = CI_LEVEL, n_episodes: float = np.inf
+                ) -> tuple[dict, np.ndarray]:
     """The excess of ``obs`` over the null replicates ``reps`` under ``rule``, and its
-    resampled values (B,) (NaN where a resample has no comparable comparison)."""
+    resampled values (B,) (NaN where a resample has no comparable comparison);
+    ``n_episodes`` per cell scales the interval (module doc)."""
     rate = obs.rate(rule)
     null = np.array([r.rate(rule) for r in reps], dtype=float)
     finite = null[np.isfinite(null)]
     row = {"observed": rate, "reversals": int(getattr(obs, f"{rule}_reversals").sum()),
            "comparable": int(getattr(obs, f"{rule}_comparable").sum()),
-           "n_null": int(finite.size)}
+           "n_null": int(finite.size), "n_episodes": n_episodes}
     if finite.size == 0 or not np.isfinite(rate):
         return {**row, "null_mean": np.nan, "null_sd": np.nan, "null_min": np.nan,
                 "null_max": np.nan, "excess": np.nan, "ci_low": np.nan, "ci_high": np.nan,
@@ -103,11 +117,12 @@ def excess_over(obs: PairCounts, reps: Sequence[PairCounts], rule: str, *,
         warnings.simplefilter("ignore", RuntimeWarning)
         boot = obs.boot_rate(rule) - np.nanmean(np.vstack([r.boot_rate(rule) for r in reps]),
                                                 axis=0)
-    low, high = percentile(boot, ci_level)
+    excess = rate - float(finite.mean())
+    low, high = centred_interval(excess, boot, ci_level, n_episodes)
     return {**row, "null_mean": float(finite.mean()),
             "null_sd": float(finite.std(ddof=1)) if finite.size > 1 else np.nan,
             "null_min": float(finite.min()), "null_max": float(finite.max()),
-            "excess": rate - float(finite.mean()), "ci_low": float(low),
+            "excess": excess, "ci_low": float(low),
             "ci_high": float(high),
             "p_value": permutation_p(rate, finite)}, boot
 
@@ -117,15 +132,16 @@ def permutation_p(observed: float, null: np.ndarray) -> float:
     return (1 + int((np.asarray(null) >= observed).sum())) / (1 + len(null))
 
 
-def percentile(samples: np.ndarray, level: float) -> tuple[float, float]:
-    """Percentile interval of the finite ``samples`` at ``level`` (NaN, NaN if none)."""
+def centred_interval(estimate: float, samples: np.ndarray, level: float,
+                     n_episodes: float = np.inf) -> tuple[float, float]:
+    """estimate ± z · √(n/(n−1)) · SD of the finite ``samples`` (NaN, NaN if < 2)."""
     x = np.asarray(samples, float)
     x = x[np.isfinite(x)]
-    if not x.size:
+    if x.size < 2 or not np.isfinite(estimate):
         return float("nan"), float("nan")
-    a = (1 - level) / 2
-    low, high = np.quantile(x, [a, 1 - a])
-    return float(low), float(high)
+    inflate = np.sqrt(n_episodes / (n_episodes - 1)) if n_episodes > 1 else np.nan
+    half = stats.norm.ppf(0.5 + level / 2) * inflate * float(x.std(ddof=1))
+    return estimate - half, estimate + half
 
 
 def burden_beyond_time(headline: pd.DataFrame, null_rates: pd.DataFrame,
@@ -150,8 +166,10 @@ def burden_beyond_time(headline: pd.DataFrame, null_rates: pd.DataFrame,
         d_null = (wide[burden] - wide["robot_time"]).to_numpy(float) if len(wide) else np.array([])
         d_null = d_null[np.isfinite(d_null)]
         boot = (boot_excess[(comp, burden, rule)] - boot_excess[(comp, "robot_time", rule)])
-        low, high = percentile(boot, ci_level) if d_null.size else (np.nan, np.nan)
         excess = d_obs - d_null.mean() if d_null.size else np.nan
+        n = float(h.at[burden, "n_episodes"]) if "n_episodes" in h else np.inf
+        low, high = centred_interval(excess, boot, ci_level, n) if d_null.size else (np.nan,
+                                                                                    np.nan)
         rows.append({"comparison": comp, "rule": rule, "metric": burden,
                      "observed_difference": d_obs,
                      "null_difference": d_null.mean() if d_null.size else np.nan,

@@ -25,11 +25,12 @@ from scipy import stats
 
 from ..episodes.specs import seed_set_of
 from .delay import cell_metrics, paired_delays
-from .evidence import N_BOOT, test_comparisons
+from .evidence import test_comparisons
 from .reversals import comparisons
 from .significance import LEVEL
 
 VARIANTS_PER_SEED_SET = 3
+CURVE_BOOT = 200  # resamples per point of the curve (its last point is the headline's)
 POWER = 0.80
 ALPHA_ONE_SIDED = 0.05
 #: The smallest excess over the null worth detecting (rate units: 5 percentage points).
@@ -51,18 +52,23 @@ def _ordered_sets(runs: pd.DataFrame, study_seed: int) -> list[int]:
 
 def replicate_curve(runs: pd.DataFrame, pedestrians: pd.DataFrame,
                     designs: dict[str, tuple[list, list]], observed: Sequence[str], *,
-                    study_seed: int, seed: int = 0, n_boot: int = N_BOOT // 2,
+                    study_seed: int, seed: int = 0, n_boot: int = CURVE_BOOT,
                     level: float = LEVEL,
-                    metrics: Sequence[str] = ("mean_delay", "worst_decile", "cvar90", "robot_time")
-                    ) -> pd.DataFrame:
+                    metrics: Sequence[str] = ("mean_delay", "worst_decile", "cvar90", "robot_time"),
+                    full: pd.DataFrame | None = None) -> pd.DataFrame:
     """Headline rows (:func:`.evidence.test_comparisons`) on the first k seed sets, for
     k = 1 … S; columns of the headline plus ``seed_sets`` and ``variants_per_cell``.
-    Resample k uses ``numpy.random.default_rng([seed, k])``."""
+    Resample k uses ``numpy.random.default_rng([seed, k])``. ``full``, when given, is
+    the headline already computed on all S seed sets (reused for k = S)."""
     order = _ordered_sets(runs, study_seed)
     run_sets = seed_sets(runs, study_seed)
     ped_sets = seed_sets(pedestrians, study_seed)
     frames = []
     for k in range(1, len(order) + 1):
+        if k == len(order) and full is not None:
+            frames.append(full[full["metric"].isin(metrics)].assign(
+                seed_sets=k, variants_per_cell=VARIANTS_PER_SEED_SET * k))
+            continue
         use = set(order[:k])
         tested = test_comparisons(runs[run_sets.isin(use).to_numpy()],
                                   pedestrians[ped_sets.isin(use).to_numpy()], designs, observed,

@@ -166,12 +166,8 @@ def report_cmd(
 
 def _write_report(study_dir: Path, n_boot: int = 1000) -> None:
     from ..engine.store import check_study_folder
+    from ..report.build import build_report
 
-    try:
-        from ..report.build import build_report
-    except ImportError:  # the report stage is optional until it exists
-        console.print("[yellow]report stage not available[/]")
-        return
     check_study_folder(study_dir)
     with console.status("writing the report…"):
         path = build_report(study_dir, n_boot=n_boot)

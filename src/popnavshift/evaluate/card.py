@@ -45,6 +45,7 @@ from ..analysis import (
 )
 from ..analysis.delay import UNIT
 from ..io import write_atomic, write_text
+from ..populations.build import population_order
 from ..tables import RUN_KEY
 from .verdict import (
     SAFETY_THRESHOLD,
@@ -52,7 +53,6 @@ from .verdict import (
     Evidence,
     Verdict,
     card_evidence,
-    population_order,
     verdict,
 )
 

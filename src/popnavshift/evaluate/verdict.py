@@ -37,7 +37,7 @@ from ..analysis.delay import cell_metrics, paired_delays
 from ..analysis.evidence import controller_ranks
 from ..analysis.resample import build_design, episode_weights, resampled_metrics
 from ..analysis.significance import ALPHA, LEVEL, bh, crossover_tests, orderings
-from ..populations.build import POPULATIONS
+from ..populations.build import population_order
 
 VERDICT_METRICS: tuple[str, ...] = ("robot_time", "mean_delay", "cvar90")
 SAFETY_OUTCOMES: tuple[str, ...] = ("pedestrian_collision", "world_collision",
@@ -63,12 +63,6 @@ class Evidence:
     reversals: pd.DataFrame  # metric, baseline, sig_reversals, sig_comparable, raw_…, decided…
     crossovers: pd.DataFrame  # metric, baseline, cell…, p, p_adj (BH over the table), crossover
     undecided_seed_sets: float  # median over undecided orderings (NaN if none)
-
-
-def population_order(names) -> list[str]:
-    """Built-in populations in SPEC order, then any other name sorted: a fixed order."""
-    given = set(names)
-    return [p for p in POPULATIONS if p in given] + sorted(given - set(POPULATIONS))
 
 
 def _oriented(table: pd.DataFrame, controller: str) -> pd.DataFrame:

@@ -121,6 +121,13 @@ def membership(
     return df[["population", "member", "persona_id", "variant"]]
 
 
+def population_order(names) -> list[str]:
+    """The built-in populations in SPEC order, then any other name sorted: the one fixed
+    order every table and figure shows populations in."""
+    given = set(names)
+    return [p for p in POPULATIONS if p in given] + sorted(given - set(POPULATIONS))
+
+
 def is_known(name: str) -> bool:
     """Whether ``name`` is a built-in population, a split half or a null population
     (whose size-matched source is itself known)."""

@@ -22,9 +22,10 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from ..analysis.replicates import MIN_EFFECT  # noqa: E402
+from ..populations.build import population_order  # noqa: E402
 from ..populations.figures import save_figure  # noqa: E402
-from .figures import controller_label, pop_label, pop_order  # noqa: E402
-from .html import Cell, Section, fmt, para, pct, table  # noqa: E402
+from .blocks import Cell, Section, figure, fmt, para, pct, table  # noqa: E402
+from .figures import controller_label, pop_label  # noqa: E402
 
 #: The metrics the headline leads with (mean burden, its tail on pooled records, robot time).
 HEADLINE_METRICS: tuple[str, ...] = ("mean_delay", "cvar90", "robot_time")
@@ -100,8 +101,6 @@ def design_text(head: pd.DataFrame, comp: str) -> str:
 def answer_section(tables: dict[str, pd.DataFrame], missing: dict[str, str],
                    figs: dict[str, Path], out: Path) -> Section:
     """The headline box and the full observed-vs-null table."""
-    from .html import figure
-
     s = Section("answer", "The answer: do rankings change with the population beyond noise?",
                 missing=missing.get("evidence", ""))
     head = tables.get("evidence_headline")
@@ -178,7 +177,7 @@ def ranks_section(tables: dict[str, pd.DataFrame]) -> Section:
         sub = r[r["metric"] == metric]
         ctrls = sorted(sub["controller"].unique())
         rows = []
-        for pop in pop_order(sub["population"].unique()):
+        for pop in population_order(sub["population"].unique()):
             row: list[Any] = [pop_label(pop)]
             for c in ctrls:
                 x = sub[(sub["population"] == pop) & (sub["controller"] == c)]
@@ -220,8 +219,6 @@ def surviving_section(tables: dict[str, pd.DataFrame]) -> Section:
 def replicates_section(tables: dict[str, pd.DataFrame], missing: dict[str, str],
                        figs: dict[str, Path], out: Path) -> Section:
     """The matched comparison against its number of seed sets, and the power advice."""
-    from .html import figure
-
     s = Section("replicates", "Replicates: rates against seed sets, replicability and power")
     curve, rep = tables.get("evidence_curve"), tables.get("evidence_replicability")
     power = tables.get("evidence_power")

@@ -3,7 +3,7 @@
 Reversal rates (Table I, with the paper's values), change in delay (Fig. 2),
 population sensitivity by width (Fig. 4), Kendall τ between population rankings,
 and the robot-time vs pedestrian-delay trade-off per population. ``write_figures``
-saves the ones an :class:`~popnavshift.report.build.Analysis` can draw, as PNG and SVG;
+saves the ones an :class:`~popnavshift.analysis.study.Analysis` can draw, as PNG and SVG;
 ``profile_figures`` brings in the population stage's Fig. 3.
 """
 
@@ -24,11 +24,11 @@ from matplotlib.patches import Rectangle  # noqa: E402
 
 from ..analysis import MATCHED, METRICS, PAPER  # noqa: E402
 from ..analysis.summary import controller_order  # noqa: E402
-from ..populations.build import POPULATION_GROUPS, POPULATIONS  # noqa: E402
+from ..populations.build import POPULATION_GROUPS, population_order  # noqa: E402
 from ..populations.figures import save_figure, write_profile_figures  # noqa: E402
 
 if TYPE_CHECKING:
-    from .build import Analysis
+    from ..analysis.study import Analysis
 
 CONTROLLER_LABELS = {"reactive": "Reactive", "early_yield": "Early yielding",
                      "robot_orca": "Robot-ORCA", "pooled": "pooled", "none": "no robot"}
@@ -53,12 +53,6 @@ def controller_colour(name: str, i: int = 0) -> str:
 
 def pop_label(name: str) -> str:
     return name.replace("_", " ")
-
-
-def pop_order(names) -> list[str]:
-    """The built-in populations in SPEC order, then any other name, sorted."""
-    given = set(names)
-    return [p for p in POPULATIONS if p in given] + sorted(given - set(POPULATIONS))
 
 
 # --- Table I as bars ---------------------------------------------------------------------------
@@ -195,7 +189,7 @@ def plot_width_sensitivity(by_width: pd.DataFrame) -> plt.Figure:
 def tau_matrix(tau: pd.DataFrame, metric: str) -> pd.DataFrame:
     """Symmetric population × population mean τ-b for ``metric`` (diagonal 1)."""
     t = tau[tau["metric"] == metric]
-    pops = pop_order(set(t["pop_a"]) | set(t["pop_b"]))
+    pops = population_order(set(t["pop_a"]) | set(t["pop_b"]))
     m = pd.DataFrame(np.eye(len(pops)), index=pops, columns=pops)
     for r in t.itertuples(index=False):
         m.loc[r.pop_a, r.pop_b] = m.loc[r.pop_b, r.pop_a] = r.tau
@@ -228,7 +222,7 @@ def plot_tau(tau: pd.DataFrame) -> plt.Figure:
 
 def plot_tradeoff(tradeoff: pd.DataFrame) -> plt.Figure:
     """Per population: robot travel time [s] vs mean (●) and worst-decile (▲) delay [s]."""
-    pops = pop_order(tradeoff["population"])
+    pops = population_order(tradeoff["population"])
     ncol = min(4, len(pops))
     nrow = -(-len(pops) // ncol)
     fig, axes = plt.subplots(nrow, ncol, figsize=(3.2 * ncol, 2.6 * nrow + 0.6), squeeze=False,
@@ -276,7 +270,6 @@ def profile_figures(src: Path, populations: pd.DataFrame | None,
     else:
         return {}, "the folder has neither figures/ nor populations.parquet"
     return {n: out / f"{n}.png" for n in PROFILE_FIGURES if (out / f"{n}.png").exists()}, ""
-
 
 
 def write_figures(a: Analysis, out: Path) -> dict[str, Path]:

@@ -1,30 +1,24 @@
-"""The report page: an :class:`~popnavshift.report.build.Analysis` → one self-contained HTML file.
-
-Each section is a list of blocks (paragraph, note, table, figure, findings,
-replays, key–value list, preformatted text) rendered by one Jinja2 template with
-autoescaping on, so persona ids, population names and model strings from the
-data are always escaped. Figures are embedded as base64 PNG data URIs; the PNG,
-SVG and CSV files beside the page are linked. The page has no script.
+"""The report's sections of the paper's results: an
+:class:`~popnavshift.analysis.study.Analysis` → populations, no-robot checks, findings,
+Table I, the noise floor, Table II, Fig. 2, Fig. 4, Kendall τ, the trade-off, replays
+and what produced the report, each a list of blocks (:mod:`.blocks`).
 """
 
 from __future__ import annotations
 
-import base64
 import json
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-import numpy as np
 import pandas as pd
-from jinja2 import Environment, PackageLoader
 
 from ..analysis import MATCHED, METRICS, PAPER
+from ..analysis.study import Analysis
 from ..analysis.summary import controller_order
-from .figures import METRIC_LABELS, change_rows, controller_label, pop_label, pop_order, tau_matrix
-
-if TYPE_CHECKING:
-    from .build import Analysis, StudyFolder
+from ..engine.folder import StudyFolder
+from ..populations.build import population_order
+from .blocks import Cell, Section, figure, fmt, para, pct, table
+from .figures import METRIC_LABELS, change_rows, controller_label, pop_label, tau_matrix
 
 PAPER_CELLS, PAPER_POPULATIONS = 104, 8
 OUTCOME_ROWS = (  # Table II rows: column of controller_outcomes, label, number format
@@ -43,55 +37,11 @@ WORDS = {"success_pct": "success rate", "timeout_pct": "timeout rate", "mean_del
          "robot_orca": "Robot-ORCA", "early_yield": "early yielding"}
 
 
-@dataclass
-class Cell:
-    text: str
-    cls: str = ""
-
-
-@dataclass
-class Section:
-    id: str
-    title: str
-    blocks: list[dict[str, Any]] = field(default_factory=list)
-    missing: str = ""
-
-
-def fmt(value: Any, pattern: str = "{:.2f}") -> str:
-    """``pattern`` applied to a number; an en dash for NaN/None."""
-    if value is None or (isinstance(value, (float, np.floating)) and np.isnan(value)):
-        return "–"
-    return pattern.format(value)
-
-
-def pct(x: Any) -> str:
-    return fmt(None if x is None else 100 * float(x), "{:.1f}%")
-
-
 def words(text: str) -> str:
     """A finding's statement with column names in words."""
     for k, v in WORDS.items():
         text = text.replace(k, v)
     return text
-
-
-def table(columns: list[str], rows: list[list[Any]], *, caption: str = "", csv: str = "",
-          collapsed: bool = False, groups: list[tuple[str, int]] | None = None) -> dict[str, Any]:
-    """A table block; ``groups`` is an optional header row above ``columns``: (label, span)."""
-    cells = [[c if isinstance(c, Cell) else Cell(str(c)) for c in r] for r in rows]
-    return {"kind": "table", "columns": columns, "rows": cells, "caption": caption, "csv": csv,
-            "collapsed": collapsed, "groups": groups or []}
-
-
-def para(text: str, kind: str = "p") -> dict[str, Any]:
-    return {"kind": kind, "text": text}
-
-
-def figure(png: Path, out: Path, caption: str) -> dict[str, Any]:
-    data = base64.b64encode(png.read_bytes()).decode("ascii")
-    rel = png.relative_to(out).as_posix()
-    return {"kind": "figure", "src": f"data:image/png;base64,{data}", "caption": caption,
-            "png": rel, "svg": rel[: -len(".png")] + ".svg", "alt": caption.split(".")[0]}
 
 
 # --- Sections ----------------------------------------------------------------------------------
@@ -104,7 +54,7 @@ def populations_section(study: StudyFolder, analysed: list[str], figs: dict[str,
     if pops is not None:
         a = pops[pops["mapping"] == "A"] if "mapping" in pops else pops
         n = a.groupby("population")["persona_id"].nunique()
-        order, used = pop_order(n.index), set(analysed)
+        order, used = population_order(n.index), set(analysed)
         s.blocks.append(table(["Population", "Members", "In the analysed runs"],
                               [[pop_label(p), int(n[p]), "yes" if p in used else "no"]
                                for p in order], caption="Cohort sizes"))
@@ -120,7 +70,7 @@ def checks_section(a: Analysis) -> Section:
                 missing=a.missing.get("checks", ""))
     t = a.tables.get("no_robot_checks")
     if t is not None:
-        t = t.set_index("population").loc[pop_order(t["population"])].reset_index()
+        t = t.set_index("population").loc[population_order(t["population"])].reset_index()
         s.blocks.append(para("Pedestrians of the no-robot runs of each population: do they "
                              "arrive, and at plausible speeds? A population is flagged when more "
                              "than 5% never arrive."))
@@ -356,7 +306,7 @@ def tradeoff_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
     if "tradeoff" in figs:
         s.blocks.append(figure(figs["tradeoff"], out, "Per population and controller: robot "
                                "travel time against mean (●) and worst-decile (▲) delay."))
-    rank = {p: i for i, p in enumerate(pop_order(t["population"]))}
+    rank = {p: i for i, p in enumerate(population_order(t["population"]))}
     t = t.sort_values("population", key=lambda c: c.map(rank), kind="stable")
     rows = [[pop_label(r.population), controller_label(r.controller), fmt(r.robot_time),
              fmt(r.mean_delay), fmt(r.worst_decile), fmt(r.success_pct, "{:.1f}")]
@@ -391,21 +341,6 @@ def replays_section(a: Analysis) -> Section:
     return s
 
 
-def respondent_note(manifest: dict[str, Any]) -> tuple[str, str]:
-    """(css class, text) saying who answered the probes; the rule surrogate is named as such."""
-    r = manifest.get("respondent", {})
-    name, model = r.get("respondent"), r.get("model", "unknown model")
-    if name is None:
-        return "note", "The manifest does not say which respondent answered the probes."
-    if name == "rule":
-        return "warn", (f"Probe responses come from the rule-based surrogate respondent "
-                        f"({model}): deterministic offline rules, NOT a language model. The "
-                        "paper's personas answered through an LLM, so this run tests the "
-                        "pipeline and the simulated populations, not LLM behaviour.")
-    where = f" at {r['base_url']}" if r.get("base_url") else ""
-    return "p", f"Probe responses come from the language model {model} ({name} respondent{where})."
-
-
 def manifest_section(study: StudyFolder, settings: dict[str, Any]) -> Section:
     s = Section("manifest", "What produced this report")
     m = study.manifest
@@ -436,7 +371,7 @@ def manifest_section(study: StudyFolder, settings: dict[str, Any]) -> Section:
 # --- The page ----------------------------------------------------------------------------------
 
 
-def _second_respondent(manifest: dict[str, Any]) -> str:
+def second_respondent(manifest: dict[str, Any]) -> str:
     second = (manifest.get("study_config") or {}).get("respondent2") or {}
     name = second.get("name", "none")
     if name == "rule":
@@ -444,30 +379,3 @@ def _second_respondent(manifest: dict[str, Any]) -> str:
     return f"{name} {second.get('options', {})}"
 
 
-def render_report(study: StudyFolder, a: Analysis, figs: dict[str, Path], out: Path,
-                  settings: dict[str, Any]) -> str:
-    """The HTML page (a string) of analysis ``a``; ``figs`` maps figure names to PNG paths."""
-    from .answer import answer_section, ranks_section, replicates_section, surviving_section
-    from .robustness import robustness_sections  # it builds on this module's blocks
-
-    sections = [
-        answer_section(a.tables, a.missing, figs, out), ranks_section(a.tables),
-        surviving_section(a.tables), replicates_section(a.tables, a.missing, figs, out),
-        populations_section(study, a.populations, figs, out), checks_section(a), summary_section(a),
-        reversals_section(a, figs, out), noise_section(a), outcomes_section(a),
-        change_section(a, figs, out), sensitivity_section(a, figs, out),
-        tau_section(a, figs, out), tradeoff_section(a, figs, out),
-        *robustness_sections(a.tables, {k[len("robust_"):]: v for k, v in a.missing.items()
-                                        if k.startswith("robust_")},
-                             _second_respondent(study.manifest)),
-        replays_section(a), manifest_section(study, settings)]
-    if "profiles" in a.missing and not any(b["kind"] == "figure" for b in sections[0].blocks):
-        sections[0].missing = a.missing["profiles"]
-    env = Environment(loader=PackageLoader("popnavshift.report", "templates"), autoescape=True,
-                      trim_blocks=True, lstrip_blocks=True)
-    cls, note = respondent_note(study.manifest)
-    return env.get_template("report.html.j2").render(
-        title=f"PopNavShift report — {study.manifest.get('study', study.folder.name)}",
-        respondent_cls=cls, respondent_note=note, selection=a.selection,
-        delays_missing=a.missing.get("delays", ""), sections=sections,
-        tables=sorted(a.tables))

@@ -1,4 +1,4 @@
-"""The report's evidence tables: do rankings change with the population beyond noise?
+"""A study's evidence tables: do rankings change with the population beyond noise?
 
 ``evidence_tables(study)`` selects, from a study folder, the runs of each headline
 comparison at its own design — the matched pair with its swap null over every seed
@@ -20,36 +20,20 @@ on the main grid — and computes with :mod:`popnavshift.analysis` (pure functio
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 import pandas as pd
 
-from ..analysis.evidence import complete_design, test_comparisons
-from ..analysis.nulls import burden_beyond_time, design_populations, headline_designs
-from ..analysis.replicates import replicability, replicate_curve, seed_sets, seed_sets_needed
-from ..analysis.significance import LEVEL
-from ..analysis.surviving import surviving_findings
+from ..engine.folder import StudyFolder, main_part
 from ..populations.build import HALF_SUFFIXES
 from ..populations.nulls import parse_null
 from ..tables import NO_ROBOT
-
-if TYPE_CHECKING:
-    from .build import StudyFolder
+from .evidence import complete_design, test_comparisons
+from .nulls import burden_beyond_time, design_populations, headline_designs
+from .replicates import replicability, replicate_curve, seed_sets, seed_sets_needed
+from .significance import LEVEL
+from .surviving import surviving_findings
 
 PREFIX = "evidence_"
-
-
-def _main_part(study: StudyFolder) -> tuple[list[str], list[str], list[str]] | None:
-    """(populations, backends, mappings) of the study's main part, from the manifest."""
-    from ..engine.study import study_from_dict
-
-    cfg = study.manifest.get("study_config")
-    if not cfg or not cfg.get("parts"):
-        return None
-    spec = study_from_dict(cfg, "manifest study_config")
-    part = spec.parts["main"] if "main" in spec.parts else next(iter(spec.parts.values()))
-    return list(part.populations), list(part.backends), list(part.mappings)
 
 
 def _is_observed(name: str) -> bool:
@@ -59,7 +43,7 @@ def _is_observed(name: str) -> bool:
 def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000,
                     level: float = LEVEL) -> tuple[dict[str, pd.DataFrame], dict[str, str]]:
     """Every evidence table of the study (see the module doc) and why any is missing."""
-    main = _main_part(study)
+    main = main_part(study)
     if main is None:
         return {}, {"evidence": "the manifest names no study part"}
     populations, backends, mappings = main
@@ -105,8 +89,8 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
                                          f"({'a swap' if label == 'matched' else 'a sized'} "
                                          "null part)")
         if label == "matched":
-            add.update(_replicates(r, p, one, obs_pops, seed=seed, rng_seed=rng_seed,
-                                   n_boot=n_boot, level=level, missing=missing))
+            add.update(_replicates(r, p, one, obs_pops, tested.headline, seed=seed,
+                                   rng_seed=rng_seed, level=level, missing=missing))
         if label == "all_pairs":
             add["findings"] = surviving_findings(r[r["population"].isin(obs_pops)],
                                                  p[p["population"].isin(obs_pops)],
@@ -118,8 +102,8 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
     return tables, missing
 
 
-def _replicates(runs: pd.DataFrame, peds: pd.DataFrame, design: dict, observed: list[str], *,
-                seed: int, rng_seed: int, n_boot: int, level: float,
+def _replicates(runs: pd.DataFrame, peds: pd.DataFrame, design: dict, observed: list[str],
+                full: pd.DataFrame, *, seed: int, rng_seed: int, level: float,
                 missing: dict[str, str]) -> dict[str, pd.DataFrame]:
     """The matched comparison against its seed sets: rates curve and replicability."""
     if int(seed_sets(runs, seed).nunique()) < 2:
@@ -127,5 +111,5 @@ def _replicates(runs: pd.DataFrame, peds: pd.DataFrame, design: dict, observed: 
                             "its part to see rates against replicates")
         return {}
     curve = replicate_curve(runs, peds, design, observed, study_seed=seed, seed=rng_seed,
-                            n_boot=max(200, n_boot // 2), level=level)
+                            level=level, full=full)
     return {"curve": curve, "replicability": replicability(runs, peds, design, study_seed=seed)}

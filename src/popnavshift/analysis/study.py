@@ -1,0 +1,264 @@
+"""One study's analysis: the main grid's tables → every section of the report, as tables.
+
+``analyse(runs, pedestrians)`` computes, from the main grid
+(:func:`popnavshift.engine.folder.main_grid`), the noise floor, no-robot checks, paired
+delays, cell metrics, Table I, Kendall τ, Table II and the trade-off, Fig. 2's change
+in delay, population sensitivity by width, and the paper's findings on our numbers. A
+section that cannot be computed on the study given (too few populations or controllers,
+no baselines, no matched pair, no split halves) is left out of ``Analysis.tables`` with
+the reason in ``Analysis.missing``.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from ..engine.folder import is_half, split_halves
+from ..populations.build import HALF_SUFFIXES
+from ..tables import NO_ROBOT
+from .delay import cell_metrics, paired_delays
+from .reversals import MATCHED, comparisons, population_pairs, ranking_tau
+from .summary import (
+    BUILTIN_CONTROLLERS,
+    PAPER,
+    Finding,
+    burden_exceeds_time,
+    completed_lower,
+    controller_extreme,
+    controller_outcomes,
+    delay_change,
+    matched_change_direction,
+    no_robot_checks,
+    noise_floor,
+    paired_share,
+    paper_findings,
+    population_sensitivity,
+    reversal_table,
+    sensitivity_by_width,
+    tail_ratio,
+    width_decreases,
+)
+
+WIDTH_SCENES: tuple[str, ...] = ("sidewalk", "bottleneck")  # the two panels of the paper's Fig. 4
+
+
+@dataclass
+class Analysis:
+    """Everything the report shows, computed from one study's tables.
+
+    ``populations``: those analysed (split halves aside); ``tables``: name → table
+    (each written as ``tables/<name>.csv``);
+    ``missing``: section id → why it could not be computed; ``findings``: the
+    paper's qualitative claims checked on our numbers; ``cells``, ``comps`` and
+    ``paired`` are kept for choosing the illustrative replays.
+    """
+
+    selection: str
+    populations: list[str] = field(default_factory=list)
+    tables: dict[str, pd.DataFrame] = field(default_factory=dict)
+    missing: dict[str, str] = field(default_factory=dict)
+    findings: list[Finding] = field(default_factory=list)
+    cells: pd.DataFrame | None = None
+    comps: pd.DataFrame | None = None
+    paired: pd.DataFrame | None = None
+
+
+def _sanity(a: Analysis, peds: pd.DataFrame) -> None:
+    base = peds[peds["controller"] == NO_ROBOT]
+    if base.empty:
+        a.missing["checks"] = "the study ran no no-robot baselines"
+    else:
+        a.tables["no_robot_checks"] = no_robot_checks(base)
+
+
+def _rankings(a: Analysis, cells: pd.DataFrame, rng_seed: int, n_boot: int) -> None:
+    pops = sorted(cells["population"].unique())
+    ctrl = sorted(cells["controller"].unique())
+    if len(pops) < 2 or len(ctrl) < 2:
+        why = (f"rankings need at least 2 populations and 2 controllers; this study has "
+               f"{len(pops)} population(s) and {len(ctrl)} controller(s)")
+        for s in ("table1", "matched", "tau"):
+            a.missing[s] = why
+        return
+    t1 = reversal_table(cells, rng=np.random.default_rng(rng_seed), n_boot=n_boot)
+    a.tables["reversals"] = t1.assign(paper_rate=[
+        PAPER["reversal_rate"].get(c, {}).get(s, {}).get(m, np.nan)
+        for c, s, m in t1[["comparison", "cells", "metric"]].itertuples(index=False)])
+    if not set(MATCHED) <= set(pops):
+        a.missing["matched"] = f"the study lacks the matched pair ({', '.join(MATCHED)})"
+    a.comps = comparisons(cells, population_pairs(pops))
+    tau = ranking_tau(a.comps).groupby(["metric", "pop_a", "pop_b"])
+    a.tables["kendall_tau"] = tau.agg(tau=("tau", "mean"), n_cells=("tau", "count")).reset_index()
+
+
+def _outcomes(a: Analysis, runs: pd.DataFrame, cells: pd.DataFrame) -> None:
+    out = controller_outcomes(runs, cells)
+    a.tables["controller_outcomes"] = out.reset_index()
+    per_pop = [controller_outcomes(runs[runs["population"] == p], cells[cells["population"] == p])
+               .reset_index().assign(population=p) for p in sorted(cells["population"].unique())]
+    a.tables["tradeoff"] = pd.concat(per_pop, ignore_index=True)
+
+
+def _delay_change(a: Analysis, cells: pd.DataFrame) -> None:
+    pops = set(cells["population"])
+    if not (set(MATCHED) <= pops or ("homogeneous" in pops and pops - {"homogeneous", *MATCHED})):
+        a.missing["change"] = ("the change in delay needs the matched pair, or the homogeneous "
+                               "reference and a population outside the matched pair")
+        return
+    frames = [delay_change(cells, metric=m).assign(metric=m)
+              for m in ("mean_delay", "worst_decile")]
+    change = pd.concat(frames, ignore_index=True)
+    if change.empty:
+        a.missing["change"] = "no cell has a paired delay under both populations of a row"
+        return
+    a.tables["delay_change"] = change
+
+
+def _sensitivity(a: Analysis, cells: pd.DataFrame) -> None:
+    if cells["population"].nunique() < 2:
+        a.missing["sensitivity"] = "population sensitivity needs at least 2 populations"
+        return
+    sens = population_sensitivity(cells)
+    a.tables["population_sensitivity"] = sens
+    frames = []
+    for scenes in (WIDTH_SCENES, *((s,) for s in WIDTH_SCENES)):
+        label = "+".join(scenes)
+        for done in (False, True):
+            for by in ((), ("controller",)):
+                f = sensitivity_by_width(sens, scenes=scenes, by=by, completed_only=done)
+                frames.append(f.assign(scenes=label, cells="completed" if done else "all",
+                                       controller=f.get("controller", "pooled")))
+    by_width = pd.concat(frames, ignore_index=True)
+    if by_width.empty:
+        a.missing["sensitivity"] = "no sidewalk or bottleneck cell has a sensitivity value"
+        return
+    a.tables["sensitivity_by_width"] = by_width[
+        ["scenes", "cells", "controller", "width", "sensitivity", "n"]]
+
+
+def _noise_floor(a: Analysis, runs: pd.DataFrame, peds: pd.DataFrame) -> None:
+    halves = split_halves(runs["population"].unique())
+    robot = runs.loc[is_half(runs["population"]) & (runs["controller"] != NO_ROBOT), "controller"]
+    if not halves or robot.nunique() < 2:
+        a_, b_ = HALF_SUFFIXES
+        a.missing["noise"] = (f"the noise floor was not run: the study has no split-half "
+                              f"populations (named <population>{a_} and <population>{b_}) "
+                              "with runs of 2 or more controllers")
+        return
+    frames = [noise_floor(runs, peds, (ha, hb), completed_only=done)
+              .assign(population=base, cells="completed" if done else "all")
+              for base, ha, hb in halves for done in (False, True)]
+    a.tables["noise_floor"] = pd.concat(frames, ignore_index=True)
+
+
+def analyse(runs: pd.DataFrame, peds: pd.DataFrame, *, selection: str = "",
+            rng_seed: int = 0, n_boot: int = 1000) -> Analysis:
+    """Every section of the report from one analysis's runs and pedestrians tables.
+
+    Split-half populations (``<population>_half_a`` / ``_half_b``) feed only the
+    noise floor; every other section uses the other populations. ``rng_seed``
+    seeds the Table I bootstrap (``numpy.random.default_rng(rng_seed)``, fresh, so
+    the intervals can be recomputed); ``n_boot`` is its resample count.
+    """
+    a = Analysis(selection=selection)
+    _noise_floor(a, runs, peds)
+    runs, peds = runs[~is_half(runs["population"])], peds[~is_half(peds["population"])]
+    a.populations = sorted(runs["population"].unique())
+    _sanity(a, peds)
+    if runs[runs["controller"] != NO_ROBOT].empty:
+        why = "the study has no robot runs"
+        for s in ("table1", "matched", "tau", "table2", "tradeoff", "change", "sensitivity",
+                  "findings"):
+            a.missing[s] = why
+        return a
+    a.paired = paired_delays(peds)
+    if a.paired.empty:
+        a.missing["delays"] = "no pedestrian has a paired delay (no no-robot baseline?)"
+    a.tables["paired_share"] = paired_share(peds, a.paired)
+    a.cells = cell_metrics(runs, a.paired)
+    a.tables["cell_metrics"] = a.cells
+    _rankings(a, a.cells, rng_seed, n_boot)
+    _outcomes(a, runs, a.cells)
+    _delay_change(a, a.cells)
+    _sensitivity(a, a.cells)
+    a.findings, why = check_findings(a.tables)
+    if why:
+        a.missing["findings"] = why
+    if a.findings:
+        a.tables["findings"] = pd.DataFrame(
+            [{"statement": f.statement, "holds": f.holds,
+              "numbers": json.dumps(f.numbers, default=str)} for f in a.findings])
+    return a
+
+
+def _widths(tables: dict[str, pd.DataFrame]) -> dict[str, pd.DataFrame]:
+    """The pooled and per-panel width curves with at least two widths (all cells, pooled)."""
+    bw = tables.get("sensitivity_by_width")
+    if bw is None:
+        return {}
+    sel = bw[(bw["cells"] == "all") & (bw["controller"] == "pooled")]
+    out = {}
+    for scenes, label in (("+".join(WIDTH_SCENES), "pooled"), *((s, s) for s in WIDTH_SCENES)):
+        w = sel[sel["scenes"] == scenes][["width", "sensitivity"]]
+        if len(w) >= 2:
+            out[label] = w.reset_index(drop=True)
+    return out
+
+
+def check_findings(tables: dict[str, pd.DataFrame]) -> tuple[list[Finding], str]:
+    """The paper's findings (:func:`paper_findings`) on our tables, and what could not be checked.
+
+    With every input present this is exactly ``paper_findings``; otherwise the
+    findings whose inputs exist are checked with the same functions, and the
+    returned text names the ones left out.
+    """
+    if "controller_outcomes" not in tables:
+        return [], "no controller outcomes"
+    outcomes = tables["controller_outcomes"].set_index("controller")
+    t1 = tables.get("reversals", pd.DataFrame(columns=["comparison", "cells", "metric", "rate"]))
+    change = tables.get("delay_change", pd.DataFrame(columns=["metric", "controller", "population",
+                                                             "change"]))
+    mean_change, widths = change[change["metric"] == "mean_delay"], _widths(tables)
+    delays = bool(outcomes["mean_delay"].notna().all())
+    pairs = "reversals" in tables and delays
+    matched = pairs and bool((t1["comparison"] == "matched").any())
+    ctrl = set(BUILTIN_CONTROLLERS) <= set(outcomes.index)
+    if matched and widths and ctrl:
+        return paper_findings(t1, outcomes, widths, mean_change), ""
+
+    def rates(comp: str, cells: str) -> pd.Series:
+        sel = t1[(t1["comparison"] == comp) & (t1["cells"] == cells)]
+        return sel.set_index("metric")["rate"]
+
+    def extreme(column: str, controller: str, highest: bool, among=None) -> Finding:
+        return controller_extreme(outcomes, column, controller, highest=highest, among=among)
+
+    checks: list[tuple[bool, str, Callable[[], list[Finding]]]] = [
+        (matched, "the matched-pair reversal finding",
+         lambda: [burden_exceeds_time(rates("matched", "all"), "matched, all cells")]),
+        (pairs, "the all-pairs reversal findings", lambda: [
+            burden_exceeds_time(rates("all_pairs", "all"), "all pairs, all cells"),
+            burden_exceeds_time(rates("all_pairs", "completed"), "all pairs, completed"),
+            completed_lower(rates("all_pairs", "all"), rates("all_pairs", "completed"),
+                            "all pairs")]),
+        (bool(widths), "the width findings (sidewalks or bottlenecks at 2+ widths)",
+         lambda: [width_decreases(w, label) for label, w in widths.items()]),
+        (delays, "the tail-to-mean finding",
+         lambda: [tail_ratio(outcomes, PAPER["tail_to_mean_ratio"])]),
+        (ctrl, "the controller findings (all three built-in controllers)", lambda: [
+            extreme("success_pct", "reactive", True), extreme("timeout_pct", "early_yield", True)]),
+        (ctrl and delays, "the controller delay findings", lambda: [
+            extreme("mean_delay", "robot_orca", False),
+            extreme("worst_decile", "robot_orca", False),
+            extreme("mean_delay", "early_yield", False, ("reactive", "early_yield"))]),
+        (ctrl and matched, "the matched-shift direction finding",
+         lambda: [matched_change_direction(mean_change, PAPER["matched_change_sign"])]),
+    ]
+    found = [f for ok, _, make in checks if ok for f in make()]
+    left = [what for ok, what, _ in checks if not ok]
+    return found, ("not checked on this study: " + "; ".join(left)) if left else ""

@@ -1,0 +1,157 @@
+"""A study folder on disk: its tables and manifest, and the runs of each study part.
+
+``read_study_folder`` reads what ``popnavshift run`` wrote; ``main_grid`` selects the
+study's main part (the paper's design), ``main_part`` names its populations, backends
+and mappings, and ``part_runs`` the runs of any part on one of its seed sets. Pure
+selection: the analysis of these runs lives in :mod:`popnavshift.analysis`.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from ..episodes.specs import seed_set_id
+from ..errors import InputError
+from ..populations.build import HALF_SUFFIXES, population_order
+from ..tables import NO_ROBOT
+from .plan import select_episodes
+from .study import study_from_dict
+
+
+@dataclass(frozen=True)
+class StudyFolder:
+    folder: Path
+    runs: pd.DataFrame
+    pedestrians: pd.DataFrame
+    populations: pd.DataFrame | None
+    episodes: pd.DataFrame | None
+    manifest: dict[str, Any]
+    metadata: dict[str, dict[str, Any]]  # personas.json, responses.json
+
+
+def _read_json(path: Path) -> dict[str, Any]:
+    return json.loads(path.read_text("utf-8")) if path.exists() else {}
+
+
+def read_study_folder(folder: Path) -> StudyFolder:
+    """The tables of a study folder; raises :class:`InputError` without runs or pedestrians."""
+    folder = Path(folder)
+    for name in ("runs.parquet", "pedestrians.parquet"):
+        if not (folder / name).exists():
+            raise InputError(f"study folder {folder}: {name} not found",
+                             hint="run the study first (popnavshift run)")
+
+    def optional(name: str) -> pd.DataFrame | None:
+        return pd.read_parquet(folder / name) if (folder / name).exists() else None
+
+    return StudyFolder(
+        folder=folder,
+        runs=pd.read_parquet(folder / "runs.parquet"),
+        pedestrians=pd.read_parquet(folder / "pedestrians.parquet"),
+        populations=optional("populations.parquet"),
+        episodes=optional("episodes.parquet"),
+        manifest=_read_json(folder / "manifest.json"),
+        metadata={n: _read_json(folder / f"{n}.json") for n in ("personas", "responses")},
+    )
+
+
+def _isin(df: pd.DataFrame, column: str, values) -> pd.Series:
+    return df[column].isin(list(values))
+
+
+def split_halves(populations) -> list[tuple[str, str, str]]:
+    """(population, half a, half b) for every pair of split-half names among ``populations``."""
+    pops = set(populations)
+    a, b = HALF_SUFFIXES
+    return sorted((p[: -len(a)], p, p[: -len(a)] + b) for p in pops
+                  if p.endswith(a) and p[: -len(a)] + b in pops)
+
+
+def is_half(population: pd.Series) -> pd.Series:
+    return population.str.endswith(HALF_SUFFIXES[0]) | population.str.endswith(HALF_SUFFIXES[1])
+
+
+def main_grid(study: StudyFolder) -> tuple[pd.DataFrame, pd.DataFrame, str]:
+    """Runs and pedestrians of the study's ``main`` part (else its first part), and a description.
+
+    The part is read from the manifest's study configuration: its episodes,
+    populations, controllers (plus the no-robot baseline), backends and mapping.
+    Split-half populations (for the noise floor) are kept on the same episodes, so the
+    floor is at Table I's design (their other seed sets feed the seed-spread section).
+    Without a configuration every run is kept.
+    """
+    runs, peds = study.runs, study.pedestrians
+    cfg = study.manifest.get("study_config")
+    if not cfg or not cfg.get("parts") or study.episodes is None:
+        return runs, peds, "every run in the folder (the manifest names no study part)"
+    spec = study_from_dict(cfg, "manifest study_config")
+    name = "main" if "main" in spec.parts else next(iter(spec.parts))
+    part = spec.parts[name]
+    ids = {e.id for e in select_episodes(part.episodes, study.episodes.itertuples(index=False))}
+
+    # a part's mapping is one name or (newer studies) a tuple of them
+    mappings = (part.mapping,) if isinstance(part.mapping, str) else tuple(part.mapping)
+
+    def keep(df: pd.DataFrame) -> pd.DataFrame:
+        grid = (_isin(df, "controller", (NO_ROBOT, *part.controllers))
+                & _isin(df, "backend", part.backends) & _isin(df, "mapping", mappings))
+        on_grid = _isin(df, "episode", ids)  # the paper's design: one seed set
+        main = _isin(df, "population", part.populations) | is_half(df["population"])
+        return df[grid & on_grid & main]
+
+    runs, peds = keep(runs), keep(peds)
+    text = (f"part {name!r}: {runs['episode'].nunique()} episodes, populations "
+            f"{', '.join(population_order(runs['population'].unique()))}; controllers "
+            f"{', '.join(part.controllers)} and no robot; backend {', '.join(part.backends)}; "
+            f"mapping {', '.join(mappings)}")
+    return runs, peds, text
+
+
+def study_seed(manifest: dict[str, Any]) -> int | None:
+    seed = manifest.get("seeds", {}).get("study", manifest.get("study_config", {}).get("seed"))
+    return None if seed is None else int(seed)
+
+
+def main_part(study: StudyFolder) -> tuple[list[str], list[str], list[str]] | None:
+    """(populations, backends, mappings) of the study's main part, from the manifest."""
+    cfg = study.manifest.get("study_config")
+    if not cfg or not cfg.get("parts"):
+        return None
+    spec = study_from_dict(cfg, "manifest study_config")
+    part = spec.parts["main"] if "main" in spec.parts else next(iter(spec.parts.values()))
+    return list(part.populations), list(part.backends), list(part.mappings)
+
+
+def part_runs(study: StudyFolder, name: str, seed: int | None = None
+              ) -> tuple[pd.DataFrame, pd.DataFrame] | None:
+    """Runs and pedestrians of the study part ``name`` (None when the study has no such
+    part, or it has no runs); ``seed`` selects one of the part's extra seed sets
+    (default: the study's own). The mapping and structure parts keep Mapping A beside
+    their profile sets, the respondent part the first respondent's pair."""
+    cfg = study.manifest.get("study_config") or {}
+    if name not in (cfg.get("parts") or {}) or study.episodes is None:
+        return None
+    part = study_from_dict(cfg, "manifest study_config").parts[name]
+    ids = {e.id for e in select_episodes(part.episodes, study.episodes.itertuples(index=False))}
+    if seed is not None and seed != cfg.get("seed", 0):
+        ids = {seed_set_id(i, seed) for i in ids}
+    mappings = set(part.mappings) | (
+        {"A"} if name in ("mapping", "structure", "respondent") else set()
+    )
+
+    def keep(df: pd.DataFrame) -> pd.DataFrame:
+        return df[
+            df["episode"].isin(ids)
+            & df["population"].isin(part.populations)
+            & df["controller"].isin([NO_ROBOT, *part.controllers])
+            & df["backend"].isin(part.backends)
+            & df["mapping"].isin(mappings)
+        ]
+
+    runs = keep(study.runs)
+    return None if runs.empty else (runs, keep(study.pedestrians))
