@@ -318,10 +318,15 @@ class _Loop:
         self.pos[0, :n] = spec.ped_starts
         if sw.robot is not None:
             self.pos[0, n] = spec.robot_start
-        self.goal = np.asarray(spec.robot_goal, dtype=np.float64)
+        # the robot's goal disc: x, y, radius [m]
+        self.goal = np.array([*spec.robot_goal, GOAL_TOLERANCE], dtype=np.float64)
         self.active = np.ones(n, dtype=np.bool_)
         self.no_robot = np.zeros(2)
-        self.trace = _Trace(n, self.pos, 0, np.full(n, -1, np.int64), np.ones(n),
+        # row 0: exit-crossing fractions of the current step (scratch); row 1: of
+        # each pedestrian's crossing step (1 until it crosses)
+        self.fracs = np.zeros((2, n))
+        self.fracs[1] = 1.0
+        self.trace = _Trace(n, self.pos, 0, np.full(n, -1, np.int64), self.fracs[1],
                             sw.robot is not None)
         if record:
             self.trace.flags = np.zeros((MAX_STEPS + 1, n), np.uint8)
@@ -350,7 +355,7 @@ class _Loop:
                                                                  twist=driver is not None),
                                   seed=0)
         rec.start()
-        exits_crossed, frac = layer.buf[0], np.zeros(n)
+        exits_crossed = layer.buf[0]
         n_active, step = n, 0
         robot_start = pos[0, n] if self.robot_in else self.no_robot
         layer.step(0.0, pos[0, :n], active, robot_start, robot_start, self.robot_in)
@@ -358,33 +363,37 @@ class _Loop:
             agents = sw.world.agents
             self._drive(1, np.array([[*a.position, a.orientation] for a in agents], np.float32),
                         np.array([[*a.velocity, a.angular_speed] for a in agents], np.float32))
-        # the hot loop: locals only (an attribute lookup costs ~30 ns, a call ~100 ns)
-        update, record, state, flags = sw.world.update, rec.update, layer.state, tr.flags
-        peds, goal, no_robot = sw.peds, self.goal, self.no_robot
-        arrival_step, arrival_frac = tr.arrival_step, tr.arrival_frac
+        # the hot loop: locals only (an attribute lookup costs ~30 ns, a call ~100 ns,
+        # a kernel argument ~80 ns)
+        update, record, packed, flags = sw.world.update, rec.update, layer.packed_state, tr.flags
+        world, peds, goal, fracs, arrival_step = sw.world, sw.peds, self.goal, self.fracs, \
+            tr.arrival_step
+        robot_in = robot_active = self.robot_in
         while True:
             if flags is not None:
                 flags[step] = layer.flags
-            if step == MAX_STEPS or (n_active == 0 and not self.robot_active):
+            if step == MAX_STEPS or (n_active == 0 and not robot_active):
                 break
             update(DT)
             record()
             step += 1
-            if self.robot_in:
-                self._robot_contacts(step)
+            if robot_in:
+                collisions = world.collisions
+                if collisions or self.contacts:
+                    robot_active = self._robot_contacts(step, collisions)
             poses = rec.poses[-1]
-            k, s, n_speed, n_target = advance(
-                step * DT, step, poses, pos, self.robot_in, self.robot_active, goal,
-                GOAL_TOLERANCE, no_robot, active, frac, arrival_step, arrival_frac, *state)
+            k, s, n_speed, n_target = advance(step, poses, pos, robot_in, robot_active, goal,
+                                              active, fracs, arrival_step, *packed)
             if k:
                 for i in exits_crossed[:k]:
                     remove_agent(peds[i], int(i))
                 n_active -= k
             if s >= 0.0:
                 self._robot_arrived(step, s)
+                robot_in = robot_active = False
             if n_speed or n_target:
                 layer.write(n_speed, n_target)
-            if driver is not None and self.robot_active and step < MAX_STEPS:
+            if driver is not None and robot_active and step < MAX_STEPS:
                 self._drive(step + 1, poses, rec.twists[-1])
         tr.steps = step
         if tr.has_robot and tr.outcome == "none":
@@ -406,14 +415,15 @@ class _Loop:
         cast(LoopDriver, self.driver).step(upcoming, poses[n], self.sensed[:m],
                                            self.sensed_ids[:m])
 
-    def _robot_contacts(self, step: int) -> None:
-        """Robot contacts, every step while it is in the scene; the first one stops it."""
-        collisions = self.world.collisions
-        if collisions or self.contacts:
-            self.contacts = self._count_contacts(step, collisions)
-            if self.robot_active and self.trace.outcome_step == step:
-                self.robot_active = False
-                stop_agent(self.robot)
+    def _robot_contacts(self, step: int, collisions) -> bool:
+        """Robot contacts of step ``step`` (``collisions``: the world's pairs), called
+        while the robot is in the scene and there are contacts now or the step
+        before; the first one stops the robot. Returns whether it is still active."""
+        self.contacts = self._count_contacts(step, collisions)
+        if self.robot_active and self.trace.outcome_step == step:
+            self.robot_active = False
+            stop_agent(self.robot)
+        return self.robot_active
 
     def _robot_arrived(self, step: int, s: float) -> None:
         """Success during ``step``, a fraction ``s`` into it: the robot leaves the scene."""
