@@ -334,11 +334,16 @@ def assign_slots(spec: EpisodeSpec, members: pd.DataFrame) -> pd.DataFrame:
     if members.empty:
         raise InputError("population members: the table is empty")
     ordered = members.sort_values("persona_id", kind="stable").reset_index(drop=True)
-    u = np.asarray(spec.slot_draws, dtype=float)
-    pick = np.minimum((u * len(ordered)).astype(np.int64), len(ordered) - 1)
-    out = ordered.iloc[pick].reset_index(drop=True)
-    out.insert(0, "slot", np.arange(len(u), dtype=np.int64))
+    out = ordered.iloc[slot_members(spec, len(ordered))].reset_index(drop=True)
+    out.insert(0, "slot", np.arange(spec.n_peds, dtype=np.int64))
     return out
+
+
+def slot_members(spec: EpisodeSpec, n_members: int) -> np.ndarray:
+    """(n_peds,) index of each slot's member among ``n_members`` sorted by persona_id:
+    ⌊u_k · n⌋ (see :func:`assign_slots`)."""
+    u = np.asarray(spec.slot_draws, dtype=float)
+    return np.minimum((u * n_members).astype(np.int64), n_members - 1)
 
 
 __all__ = [
@@ -350,4 +355,5 @@ __all__ = [
     "episodes_table",
     "get_episode",
     "make_episode",
+    "slot_members",
 ]

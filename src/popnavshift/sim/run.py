@@ -28,7 +28,7 @@ import pandas as pd
 from navground import sim
 from numba import njit
 
-from ..episodes.specs import PED_RADIUS, EpisodeSpec
+from ..episodes.specs import PED_RADIUS, EpisodeSpec, slot_members
 from ..errors import ConfigError, InputError, PopNavShiftError
 from ..plugins import make_backend, make_controller
 from ..tables import PARAM_RANGES, PARAMS
@@ -81,7 +81,7 @@ def pedestrian_table(columns: list[dict], keys: dict[str, list] | None = None) -
 
 def simulate(
     spec: EpisodeSpec,
-    slots: pd.DataFrame | None,
+    slots: pd.DataFrame | SlotProfiles | None,
     controller,
     backend: str = "orca",
     *,
@@ -89,7 +89,8 @@ def simulate(
 ) -> SimResult:
     """Run ``spec`` with slot profiles ``slots`` (see :func:`episodes.assign_slots`).
 
-    ``slots`` None gives every pedestrian the mid-range profile. ``controller`` is a
+    ``slots`` None gives every pedestrian the mid-range profile; a
+    :class:`SlotProfiles` is used as it is. ``controller`` is a
     controller id (see :func:`resolve_controller`), a ControllerFactory, or
     None/"none" for the no-robot baseline. ``record`` adds a trajectory for replays.
     Raises :class:`ControllerError` when the controller raises (see
@@ -221,29 +222,64 @@ def failed_result(spec: EpisodeSpec, controller: str, backend: str) -> SimResult
     return SimResult(run, peds)
 
 
-def slot_profiles(spec: EpisodeSpec, slots: pd.DataFrame | None) -> tuple[np.ndarray, list[str]]:
+@dataclass(frozen=True)
+class SlotProfiles:
+    """Slot profiles already in the loop's form: ``values`` (n, 7) in PARAMS order,
+    ``persona_ids`` (n,). What :func:`slot_profiles` makes of a slots table; a study
+    worker builds it straight from its cached population arrays
+    (:func:`profiles_of_members`), since a DataFrame per run costs more than the
+    run's world build in small scenes."""
+
+    values: np.ndarray
+    persona_ids: list[str]
+
+
+def profiles_of_members(spec: EpisodeSpec, values: np.ndarray,
+                        persona_ids: list[str]) -> SlotProfiles:
+    """The slot profiles of ``spec`` from one population's members sorted by
+    persona_id: ``values`` (m, 7) in PARAMS order, ``persona_ids`` (m,); the same
+    profiles as ``slot_profiles(spec, assign_slots(spec, members))``."""
+    pick = slot_members(spec, len(persona_ids))
+    chosen = values[pick]
+    _check_profiles(spec, chosen)
+    return SlotProfiles(chosen, [persona_ids[i] for i in pick])
+
+
+def slot_profiles(spec: EpisodeSpec,
+                  slots: pd.DataFrame | SlotProfiles | None) -> tuple[np.ndarray, list[str]]:
     """Validated (n, 7) profile array in PARAMS order and the persona ids of the slots."""
     n = spec.n_peds
     if slots is None:
         return np.tile([DEFAULT_PROFILE[p] for p in PARAMS], (n, 1)), ["default"] * n
-    columns = list(slots.columns)
-    missing = [c for c in ("persona_id", *PARAMS) if c not in columns]
+    if isinstance(slots, SlotProfiles):
+        if len(slots.persona_ids) != n or slots.values.shape != (n, len(PARAMS)):
+            raise InputError(f"slots for {spec.id}: expected {n} profiles (one per pedestrian), "
+                             f"got {len(slots.persona_ids)}")
+        return slots.values, slots.persona_ids
+    missing = [c for c in ("persona_id", *PARAMS) if c not in slots.columns]
     if missing:
         raise InputError(f"slots for {spec.id}: missing column(s) {', '.join(missing)}")
     if len(slots) != n:
         raise InputError(
             f"slots for {spec.id}: expected {n} rows (one per pedestrian), got {len(slots)}"
         )
-    # one object array, cells as Python scalars: column selection and sort_values
-    # would cost ~1 ms per run
-    table = slots.to_numpy(dtype=object)
-    if "slot" in columns:
-        slot = table[:, columns.index("slot")]
+    # one column at a time (a multi-column selection or a whole-table to_numpy
+    # costs ~10x more)
+    values = np.column_stack([slots[p].to_numpy(dtype=np.float64) for p in PARAMS])
+    ids = [str(x) for x in slots["persona_id"].tolist()]
+    if "slot" in slots.columns:
+        slot = slots["slot"].to_numpy()
         if not np.array_equal(slot, np.arange(n)):  # usually already in slot order
             if sorted(slot.tolist()) != list(range(n)):
                 raise InputError(f"slots for {spec.id}: column 'slot' must hold 0..{n - 1}")
-            table = table[np.argsort(slot, kind="stable")]
-    values = table[:, [columns.index(p) for p in PARAMS]].astype(np.float64)
+            order = np.argsort(slot, kind="stable")
+            values, ids = values[order], [ids[i] for i in order]
+    _check_profiles(spec, values)
+    return values, ids
+
+
+def _check_profiles(spec: EpisodeSpec, values: np.ndarray) -> None:
+    """InputError naming the first parameter, then slot, outside its range."""
     bad = ~np.isfinite(values) | (values < _PARAM_LO) | (values > _PARAM_HI)
     if bad.any():
         j = int(np.flatnonzero(bad.any(axis=0))[0])  # first parameter, then first slot
@@ -253,7 +289,6 @@ def slot_profiles(spec: EpisodeSpec, slots: pd.DataFrame | None) -> tuple[np.nda
             f"slots for {spec.id}: {PARAMS[j]} = {float(values[k, j])} at slot {k} "
             f"is not a number in [{lo}, {hi}]"
         )
-    return values, [str(x) for x in table[:, columns.index("persona_id")]]
 
 
 @dataclass
