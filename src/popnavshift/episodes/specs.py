@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
-from functools import lru_cache
+from functools import cache, lru_cache
 
 import numpy as np
 import pandas as pd
@@ -294,11 +294,17 @@ def get_episode(episode_id: str, seed: int = 0) -> EpisodeSpec:
         if not seed_text.isdigit():
             raise ConfigError(f"episode {episode_id!r}: seed set must be {SEED_SET_SEP}<integer>")
         episode_id, seed = base, int(seed_text)
-    known = {f"{c.key}-v{v}": (c, v) for c in all_cells() for v in VARIANTS}
+    known = _episode_cells()
     if episode_id not in known:
         raise UnknownNameError("episode", episode_id, known)
     cell, variant = known[episode_id]
     return make_episode(cell, variant, int(seed))
+
+
+@cache
+def _episode_cells() -> dict[str, tuple[Cell, int]]:
+    """Episode id (without seed set) → (cell, variant); built once per process."""
+    return {f"{c.key}-v{v}": (c, v) for c in all_cells() for v in VARIANTS}
 
 
 def episodes_table(episodes) -> pd.DataFrame:

@@ -14,7 +14,8 @@ full stack within :data:`TARGET_RATIO` × bare navground.
   layer, robot controller, loop bookkeeping, metrics and per-run result columns) with the
   slots of a synthetic population (:data:`POPULATION_SIZE` members, profiles
   uniform over ``PARAM_RANGES``, drawn from ``seed``; slots assigned outside the
-  timing).
+  timing, as the :class:`~popnavshift.sim.run.SlotProfiles` a study worker
+  builds once per population and batch).
 * **Bare navground**: the same world (:func:`.world.build_world`: walls,
   obstacles, starts, speeds, radii, pedestrian behaviours) with no Python during
   the run: every robot condition gets the native C++ ``robot_orca``, pedestrians
@@ -54,7 +55,7 @@ from ..hashing import stable_seed
 from ..tables import PARAM_RANGES, PARAMS
 from .controllers import CONTROLLERS
 from .pedestrians import BACKENDS
-from .run import simulate
+from .run import SlotProfiles, simulate, slot_profiles
 from .world import DT, build_world
 
 TARGET_RATIO = 2.5  # full stack within this factor of bare navground
@@ -125,7 +126,7 @@ def bare_world(spec: EpisodeSpec, speeds: np.ndarray, backend: str,
     return sw.world
 
 
-def _time_full(spec: EpisodeSpec, slots: pd.DataFrame, condition: str,
+def _time_full(spec: EpisodeSpec, slots: SlotProfiles, condition: str,
                backend: str) -> tuple[float, int]:
     t0 = time.perf_counter_ns()
     result = simulate(spec, slots, condition, backend)
@@ -140,9 +141,16 @@ def _time_bare(spec: EpisodeSpec, speeds: np.ndarray, condition: str, backend: s
     return (time.perf_counter_ns() - t0) * 1e-6
 
 
-def _warm_up(spec: EpisodeSpec, slots: pd.DataFrame, conditions, backends) -> None:
+def _study_slots(spec: EpisodeSpec, population: pd.DataFrame) -> SlotProfiles:
+    """The slots of ``spec`` in the form a study worker passes them to ``simulate``
+    (built once per population and batch there, so outside the timing here)."""
+    values, ids = slot_profiles(spec, assign_slots(spec, population))
+    return SlotProfiles(values, ids)
+
+
+def _warm_up(spec: EpisodeSpec, slots: SlotProfiles, conditions, backends) -> None:
     """Load (or compile) every numba kernel and import every module before timing."""
-    speeds = slots[PARAMS[0]].to_numpy(dtype=float)
+    speeds = slots.values[:, 0]
     for condition in conditions:
         for backend in backends:
             simulate(spec, slots, condition, backend)
@@ -177,12 +185,12 @@ def run_bench(
                           f"known: {', '.join(CONDITIONS + BACKEND_NAMES)}")
     specs = bench_sample(n_per_scene, seed, scenes)
     population = synthetic_population(seed)
-    slots = {s.id: assign_slots(s, population) for s in specs}
+    slots = {s.id: _study_slots(s, population) for s in specs}
     _warm_up(specs[0], slots[specs[0].id], conditions, backends)
     rows = []
     for rep in range(repeats):
         for spec in specs:
-            speeds = slots[spec.id][PARAMS[0]].to_numpy(dtype=float)
+            speeds = slots[spec.id].values[:, 0]
             for condition in conditions:
                 for backend in backends:
                     full_ms, steps = _time_full(spec, slots[spec.id], condition, backend)

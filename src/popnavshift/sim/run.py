@@ -444,11 +444,9 @@ class _Loop:
         poses and twists (agents, 3) that the step's sensing will read. (Not named
         ``step``: an error is dated by the loop's ``step``, as one raised by a
         behaviour during that navground step would be.)"""
-        n = self.n
-        m = sense_neighbors(poses, twists, n, self.active, ROBOT_SENSING_RANGE,
-                            self.sensed, self.sensed_ids)
-        cast(LoopDriver, self.driver).step(upcoming, poses[n], self.sensed[:m],
-                                           self.sensed_ids[:m])
+        n, sensed, ids = self.n, self.sensed, self.sensed_ids
+        m = sense_neighbors(poses, twists, n, self.active, ROBOT_SENSING_RANGE, sensed, ids)
+        self.driver.step(upcoming, poses[n], sensed[:m], ids[:m])  # type: ignore[union-attr]
 
     def _robot_contacts(self, step: int, collisions) -> bool:
         """Robot contacts of step ``step`` (``collisions``: the world's pairs), called
