@@ -252,6 +252,8 @@ class EarlyYieldDriver:
 
     def step(self, step: int, pose: np.ndarray, peds: np.ndarray, ids: np.ndarray) -> None:
         m = cast(YieldMachine, self.machine)
+        if m.phase == GO and not len(ids):
+            return  # going, nobody sensed: the machine would stay in GO and change nothing
         before = (m.phase, m.aside_point)
         x, y = pose[:2].tolist()
         gx, gy = self._goal
