@@ -246,6 +246,12 @@ CATEGORY_RULES: tuple[tuple[str, str, frozenset[str]], ...] = (
     ("world build", "sim/run.py", frozenset({"slot_profiles", "resolve_controller"})),
     ("world build", "sim/pedestrians.py", frozenset({"__init__"})),
     ("navground update (C++)", "sim/bench.py", frozenset({"_world_update"})),
+    # World.run of a quiet stretch (its recording callback included, see sim/quiet.py)
+    ("navground update (C++)", "~",
+     frozenset({"<built-in method navground.sim._navground_sim.run>"})),
+    ("response layer kernel", "sim/quiet.py", frozenset({"replay_quiet"})),
+    ("loop bookkeeping", "sim/quiet.py", frozenset({"quiet_steps", "robot_touched"})),
+    ("loop bookkeeping", "sim/run.py", frozenset({"_stretch"})),
     # the per-step numba kernel: pose copy, exits, goal entry and the response layer
     ("response layer kernel", "sim/pedestrians.py", frozenset({"_respond", "advance"})),
     ("response layer writes", "sim/pedestrians.py", frozenset({"step", "write"})),

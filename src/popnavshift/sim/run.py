@@ -35,11 +35,13 @@ from ..tables import PARAM_RANGES, PARAMS
 from .controllers import GOAL_TOLERANCE, ROBOT_RADIUS, ROBOT_SENSING_RANGE, LoopDriver
 from .controllers._rollout import sense_neighbors
 from .pedestrians import ResponseLayer, advance
+from .quiet import NotQuiet, quiet_steps, replay_quiet, robot_touched
 from .world import DT, MAX_STEPS, SimWorld, build_world, remove_agent, stop_agent
 
 DEFAULT_PROFILE = {p: (lo + hi) / 2 for p, (lo, hi) in PARAM_RANGES.items()}
 V_STOP = 0.05  # [m/s] an agent moving slower than this is stopped
 TIME_LIMIT = MAX_STEPS * DT  # [s] travel time of a failed robot run
+RECHECK_STEPS = 5  # after a step that could not start a quiet stretch, test again this later
 # bounds of the slot profile check, PARAMS order
 _PARAM_LO = np.array([PARAM_RANGES[p][0] for p in PARAMS]) - 1e-9
 _PARAM_HI = np.array([PARAM_RANGES[p][1] for p in PARAMS]) + 1e-9
@@ -86,6 +88,7 @@ def simulate(
     backend: str = "orca",
     *,
     record: bool = False,
+    stretches: bool = True,
 ) -> SimResult:
     """Run ``spec`` with slot profiles ``slots`` (see :func:`episodes.assign_slots`).
 
@@ -93,28 +96,20 @@ def simulate(
     :class:`SlotProfiles` is used as it is. ``controller`` is a
     controller id (see :func:`resolve_controller`), a ControllerFactory, or
     None/"none" for the no-robot baseline. ``record`` adds a trajectory for replays.
+    ``stretches`` False steps every step from Python (:mod:`.quiet` lets navground
+    run the steps that need nothing from the loop; the results are the same).
     Raises :class:`ControllerError` when the controller raises (see
     :func:`failed_result` for the row a study records instead).
     """
     profiles, persona_ids = slot_profiles(spec, slots)
     factory, controller_name = resolve_controller(controller)
     ped_backend = make_backend(backend)
-    sw: SimWorld | None = None
-    driver: LoopDriver | None = None
     try:
-        if hasattr(factory, "loop_driver"):
-            driver = factory.loop_driver()
-        sw = build_world(spec, profiles[:, 0], driver or factory, ped_backend)
-        if driver is not None:  # navground hands behaviours its float32 time step
-            driver.start(cast(sim.Agent, sw.robot), sw.world, float(np.float32(DT)))
-        layer = ResponseLayer(sw.ped_behaviors, spec, profiles, ROBOT_RADIUS)
-        trace = _Loop(spec, sw, layer, driver, record).execute()
-    except Exception as exc:
-        robot = sw.robot_behavior if sw is not None else None
-        blamed = _blame_controller(exc, controller_name, (factory, robot, driver))
-        if blamed is None:
-            raise
-        raise blamed from exc
+        trace = _run(spec, profiles, factory, controller_name, ped_backend, record,
+                     stretches=stretches and not record)
+    except NotQuiet:  # a quiet stretch was not: the run again, step by step
+        trace = _run(spec, profiles, factory, controller_name, ped_backend, record,
+                     stretches=False)
     run = {
         **_episode_columns(spec),
         "controller": controller_name,
@@ -126,6 +121,30 @@ def simulate(
     }
     peds = _pedestrian_columns(spec, controller_name, backend, trace, profiles, persona_ids)
     return SimResult(run, peds, trace.trajectory(spec) if record else None)
+
+
+def _run(spec: EpisodeSpec, profiles: np.ndarray, factory, controller_name: str,
+         ped_backend, record: bool, stretches: bool) -> _Trace:
+    """Build the run's world and step it; a controller's exception becomes a
+    :class:`ControllerError`."""
+    sw: SimWorld | None = None
+    driver: LoopDriver | None = None
+    try:
+        if hasattr(factory, "loop_driver"):
+            driver = factory.loop_driver()
+        sw = build_world(spec, profiles[:, 0], driver or factory, ped_backend)
+        if driver is not None:  # navground hands behaviours its float32 time step
+            driver.start(cast(sim.Agent, sw.robot), sw.world, float(np.float32(DT)))
+        layer = ResponseLayer(sw.ped_behaviors, spec, profiles, ROBOT_RADIUS)
+        return _Loop(spec, sw, layer, driver, record, stretches).execute()
+    except NotQuiet:
+        raise
+    except Exception as exc:
+        robot = sw.robot_behavior if sw is not None else None
+        blamed = _blame_controller(exc, controller_name, (factory, robot, driver))
+        if blamed is None:
+            raise
+        raise blamed from exc
 
 
 def _episode_columns(spec: EpisodeSpec) -> dict:
@@ -342,8 +361,13 @@ class _Loop:
     """One run's stepping loop; state lives on the instance, arrays are preallocated."""
 
     def __init__(self, spec: EpisodeSpec, sw: SimWorld, layer: ResponseLayer,
-                 driver: LoopDriver | None, record: bool) -> None:
+                 driver: LoopDriver | None, record: bool, stretches: bool = False) -> None:
         self.spec, self.sw, self.layer, self.record = spec, sw, layer, record
+        # quiet stretches (see .quiet): not while recording flags, and with a loop
+        # driver only if it can tell when a step without neighbours changes nothing
+        self.driver_quiet = getattr(driver, "quiet", None)
+        self.stretches = stretches and not record and (driver is None
+                                                       or self.driver_quiet is not None)
         self.world = sw.world
         self.driver = driver
         n = spec.n_peds
@@ -368,9 +392,9 @@ class _Loop:
             self.initial_poses = np.array(
                 [[*a.position, a.orientation] for a in sw.world.agents], dtype=np.float64
             ).reshape(na, 3)
-        if driver is not None:  # what the driver senses: the neighbours' rows and slots
-            self.sensed = np.empty((n, 5))
-            self.sensed_ids = np.empty(n, np.int64)
+        # what the driver senses: the neighbours' rows and slots
+        self.sensed = np.empty((n, 5))
+        self.sensed_ids = np.empty(n, np.int64)
 
     def execute(self) -> _Trace:
         """Step until the limit, or until the robot is done (or absent) and all peds left.
@@ -384,12 +408,16 @@ class _Loop:
         self.robot = cast(sim.Agent, sw.robot)  # used only while robot_in
         self.contacts = _initial_contacts(self.spec, sw) if self.robot_in else set()
         driver = self.driver
+        stretches = self.stretches
+        config = sim.RecordConfig(pose=True, twist=driver is not None,
+                                  collisions=stretches and self.robot_in)
         rec = sim.ExperimentalRun(sw.world, time_step=DT, steps=MAX_STEPS,
                                   terminate_when_all_idle_or_stuck=False,
-                                  record_config=sim.RecordConfig(pose=True,
-                                                                 twist=driver is not None),
-                                  seed=0)
+                                  record_config=config, seed=0)
         rec.start()
+        if stretches:  # records every step, in World.update and World.run alike
+            sw.world.add_callback(rec.update)
+        self.rec = rec
         exits_crossed = layer.buf[0]
         n_active, step = n, 0
         robot_start = pos[0, n] if self.robot_in else self.no_robot
@@ -400,17 +428,30 @@ class _Loop:
                         np.array([[*a.velocity, a.angular_speed] for a in agents], np.float32))
         # the hot loop: locals only (an attribute lookup costs ~30 ns, a call ~100 ns,
         # a kernel argument ~80 ns)
-        update, record, packed, flags = sw.world.update, rec.update, layer.packed_state, tr.flags
+        update, packed, flags = sw.world.update, layer.packed_state, tr.flags
+        record = None if stretches else rec.update
         world, peds, goal, fracs, arrival_step = sw.world, sw.peds, self.goal, self.fracs, \
             tr.arrival_step
+        prm, fst, ist, speed = layer.prm, layer.fst, layer.ist, self.spec.robot_speed
+        driver_quiet, next_check = self.driver_quiet, 0
         robot_in = robot_active = self.robot_in
         while True:
             if flags is not None:
                 flags[step] = layer.flags
             if step == MAX_STEPS or (n_active == 0 and not robot_active):
                 break
+            if stretches and step >= next_check and not self.contacts and (
+                    driver_quiet is None or not robot_active or driver_quiet()):
+                k = quiet_steps(step, pos, robot_in, robot_active, speed, goal, active, prm,
+                                fst, ist, MAX_STEPS - 1 - step)
+                if k:
+                    self._stretch(step, k, robot_in, robot_active)
+                    step += k
+                    continue
+                next_check = step + RECHECK_STEPS
             update(DT)
-            record()
+            if record is not None:
+                record()
             step += 1
             if robot_in:
                 collisions = world.collisions
@@ -438,6 +479,20 @@ class _Loop:
         if self.record:
             tr.poses = np.concatenate([self.initial_poses[None], np.array(rec.poses)[:step]])
         return tr
+
+    def _stretch(self, step: int, k: int, robot_in: bool, robot_active: bool) -> None:
+        """Steps ``step`` + 1 … ``step`` + k in navground's loop, then the loop's kernel
+        over their recorded poses; :class:`NotQuiet` if one of them needed the loop."""
+        rec = self.rec
+        touched_before = len(rec.collisions) if robot_in else 0
+        self.world.run(k, DT)
+        quiet = replay_quiet(step, rec.poses[-k:], self.pos, robot_in, robot_active, self.goal,
+                             self.active, self.fracs, self.trace.arrival_step,
+                             *self.layer.packed_state, self.driver is not None and robot_active,
+                             self.sensed, self.sensed_ids)
+        if not quiet or (robot_in and robot_touched(rec.collisions, touched_before,
+                                                    self.robot._uid)):
+            raise NotQuiet
 
     def _drive(self, upcoming: int, poses: np.ndarray, twists: np.ndarray) -> None:
         """The driver's decision for navground step ``upcoming``, from the float32
