@@ -289,7 +289,7 @@ def _waypoint(px, py, ex, ey, side, offset, need, walls, obstacles, out):
     out[0], out[1] = px + WP_AHEAD * ex, py + WP_AHEAD * ey
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _respond(t, P, active, R, R_prev, robot_on, prm, fst, ist, buf, r_sum, side, need, walls,
              obstacles):
     n_speed = 0
@@ -360,7 +360,7 @@ def _respond(t, P, active, R, R_prev, robot_on, prm, fst, ist, buf, r_sum, side,
     return n_speed, n_target
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def crossed_exit(P, Pprev, E, exits, active, idx_out, frac_out):
     """Pedestrians that crossed their exit line this step: count, indices, step fraction.
 
@@ -381,7 +381,7 @@ def crossed_exit(P, Pprev, E, exits, active, idx_out, frac_out):
     return count
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def entry_fraction(x0, y0, x1, y1, cx, cy, radius):
     """First s ∈ [0, 1] at which the step (x0, y0) → (x1, y1) [m] enters the disc of
     centre (cx, cy) and ``radius`` [m]; 0 if it starts inside, −1 if it never enters."""
@@ -398,7 +398,7 @@ def entry_fraction(x0, y0, x1, y1, cx, cy, radius):
     return s if 0.0 <= s <= 1.0 else -1.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def advance(step, poses, pos, robot_on, robot_active, goal, active, fracs, arrival_step, prm, fst,
             ist, buf, consts, walls, obstacles):
     """The stepping loop's array work after navground step ``step`` (time step·DT [s]).
