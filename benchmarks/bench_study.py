@@ -3,7 +3,8 @@
 Prints, per worker count: runs/s (wall clock), the CPU time per run (workers and
 parent, local executor only: Ray's workers are not our child processes), the
 scaling from the first to the last worker count, peak memory, and whether every
-row's study tables are identical to the first row's. With --bare it also runs
+row's study tables are identical to the first row's (a local Ray instance is
+started before the timing, on 127.0.0.1). With --bare it also runs
 the simulation bench (popnavshift.sim.bench). Not a test: run it by hand; on a
 shared machine compare the CPU figures, the wall clock is only as quiet as the
 machine.
@@ -22,6 +23,7 @@ import shutil
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 
@@ -54,12 +56,22 @@ def time_study(study, workers: int, populations_from: Path, executor: str,
         if f.is_file():
             shutil.copy(f, folder / f.name)
     shutil.copytree(populations_from / "figures", folder / "figures")
+    own_ray = executor == "ray" and address is None
+    if own_ray:  # the instance's start is not timed
+        import ray
+
+        ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False,
+                 _node_ip_address="127.0.0.1")
     cpu_self, cpu_children = _cpu(resource.RUSAGE_SELF), _cpu(resource.RUSAGE_CHILDREN)
     started = time.perf_counter()
-    report = run_study(study, folder, workers=workers, executor_name=executor,
-                       address=address, show_progress=False)
-    seconds = time.perf_counter() - started
-    row = {
+    try:
+        report = run_study(study, folder, workers=workers, executor_name=executor,
+                           address=address, show_progress=False)
+    finally:
+        seconds = time.perf_counter() - started
+        if own_ray:
+            ray.shutdown()
+    row: dict[str, Any] = {
         "executor": executor,
         "workers": workers,
         "runs": report.executed,
