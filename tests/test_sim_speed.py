@@ -1,7 +1,9 @@
 """The speed paths give the one-step-at-a-time results: quiet stretches (sim.quiet), their
 rerun when a stretch was not quiet, and a worker's cached slot profiles (engine.worker)."""
 
+import gc
 import json
+import weakref
 
 import pandas as pd
 import pytest
@@ -92,3 +94,23 @@ def test_a_worker_batch_gives_the_runs_of_simulate_with_assigned_slots():
         peds = ped_table[(ped_table["population"] == r.population)
                          & (ped_table["controller"] == r.controller)].reset_index(drop=True)
         assert peds[list(expected.pedestrians.columns)].equals(expected.pedestrians)
+
+
+def test_a_run_leaves_no_recording_alive(monkeypatch):
+    """The stretches' recording callback must not keep a finished run's recording
+    (and its world) alive through C++, out of the garbage collector's reach."""
+    recordings = []
+    execute = run_module._Loop.execute
+
+    def keep_a_weak_reference(self):
+        try:
+            return execute(self)
+        finally:
+            recordings.append(weakref.ref(self.rec))
+
+    monkeypatch.setattr(run_module._Loop, "execute", keep_a_weak_reference)
+    spec = get_episode("head_on-w2.4-d0.06-s1.0-v1")
+    for controller in ("robot_orca", None):
+        simulate(spec, None, controller)
+    gc.collect()
+    assert len(recordings) == 2 and all(ref() is None for ref in recordings)

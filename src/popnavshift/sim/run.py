@@ -145,6 +145,9 @@ def _run(spec: EpisodeSpec, profiles: np.ndarray, factory, controller_name: str,
         if blamed is None:
             raise
         raise blamed from exc
+    finally:  # the recording callback (see _Loop.execute) would keep world and run alive:
+        if sw is not None:  # a reference cycle through C++ that Python cannot collect
+            sw.world.reset_callbacks()
 
 
 def _episode_columns(spec: EpisodeSpec) -> dict:
