@@ -38,7 +38,7 @@ def init_worker(context: Context) -> None:
 def _members(ctx: Context, mapping: str, population: str) -> tuple[np.ndarray, list[str]]:
     """One population's members sorted by persona id, as the (m, 7) profile array in
     PARAMS order and their persona ids; cached per worker and context (the slots of a
-    run are then rows of these arrays, see :func:`popnavshift.sim.run.profiles_of_members`)."""
+    run are then rows of these arrays, see :func:`popnavshift.sim.slots.profiles_of_members`)."""
     global _MEMBERS
     if _MEMBERS is None or _MEMBERS[0] is not ctx:
         groups = ctx.populations.groupby(["mapping", "population"], sort=False)
@@ -60,14 +60,8 @@ def run_batch(
 ) -> tuple[str, pd.DataFrame, pd.DataFrame, float]:
     """Simulate every run of ``batch``; returns (batch id, runs, pedestrians, seconds)."""
     from ..episodes.specs import get_episode
-    from ..sim.run import (
-        ControllerError,
-        SlotProfiles,
-        failed_result,
-        pedestrian_table,
-        profiles_of_members,
-        simulate,
-    )
+    from ..sim.run import ControllerError, failed_result, pedestrian_table, simulate
+    from ..sim.slots import SlotProfiles, profiles_of_members
 
     ctx = context or _CONTEXT
     assert ctx is not None, "worker used before init_worker"

@@ -14,7 +14,7 @@ full stack within :data:`TARGET_RATIO` × bare navground.
   layer, robot controller, loop bookkeeping, metrics and per-run result columns) with the
   slots of a synthetic population (:data:`POPULATION_SIZE` members, profiles
   uniform over ``PARAM_RANGES``, drawn from ``seed``; slots assigned outside the
-  timing, as the :class:`~popnavshift.sim.run.SlotProfiles` a study worker
+  timing, as the :class:`~popnavshift.sim.slots.SlotProfiles` a study worker
   builds once per population and batch).
 * **Bare navground**: the same world (:func:`.world.build_world`: walls,
   obstacles, starts, speeds, radii, pedestrian behaviours) with no Python during
@@ -55,7 +55,8 @@ from ..hashing import stable_seed
 from ..tables import PARAM_RANGES, PARAMS
 from .controllers import CONTROLLERS
 from .pedestrians import BACKENDS
-from .run import SlotProfiles, simulate, slot_profiles
+from .run import simulate
+from .slots import SlotProfiles, slot_profiles
 from .world import DT, build_world
 
 TARGET_RATIO = 1.3  # full stack within this factor of bare navground, overall (issue #15)
@@ -250,7 +251,8 @@ def _rates(df: pd.DataFrame) -> dict[str, Any]:
 #: Functions matching none inherit their callers' categories (see profile_categories).
 CATEGORY_RULES: tuple[tuple[str, str, frozenset[str]], ...] = (
     ("world build", "sim/world.py", frozenset({"build_world"})),
-    ("world build", "sim/run.py", frozenset({"slot_profiles", "resolve_controller"})),
+    ("world build", "sim/run.py", frozenset({"resolve_controller"})),
+    ("world build", "sim/slots.py", frozenset({"slot_profiles"})),
     ("world build", "sim/pedestrians.py", frozenset({"__init__"})),
     ("navground update (C++)", "sim/bench.py", frozenset({"_world_update"})),
     # World.run of a quiet stretch (its recording callback included, see sim/quiet.py)

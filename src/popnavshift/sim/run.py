@@ -28,23 +28,20 @@ import pandas as pd
 from navground import sim
 from numba import njit
 
-from ..episodes.specs import PED_RADIUS, EpisodeSpec, slot_members
-from ..errors import ConfigError, InputError, PopNavShiftError
+from ..episodes.specs import PED_RADIUS, EpisodeSpec
+from ..errors import ConfigError, PopNavShiftError
 from ..plugins import make_backend, make_controller
-from ..tables import PARAM_RANGES, PARAMS
+from ..tables import PARAMS
 from .controllers import GOAL_TOLERANCE, ROBOT_RADIUS, ROBOT_SENSING_RANGE, LoopDriver
 from .controllers._rollout import sense_neighbors
 from .pedestrians import ResponseLayer, advance
 from .quiet import NotQuiet, quiet_steps, replay_quiet, robot_touched
+from .slots import SlotProfiles, slot_profiles
 from .world import DT, MAX_STEPS, SimWorld, build_world, remove_agent, stop_agent
 
-DEFAULT_PROFILE = {p: (lo + hi) / 2 for p, (lo, hi) in PARAM_RANGES.items()}
 V_STOP = 0.05  # [m/s] an agent moving slower than this is stopped
 TIME_LIMIT = MAX_STEPS * DT  # [s] travel time of a failed robot run
 RECHECK_STEPS = 5  # after a step that could not start a quiet stretch, test again this later
-# bounds of the slot profile check, PARAMS order
-_PARAM_LO = np.array([PARAM_RANGES[p][0] for p in PARAMS]) - 1e-9
-_PARAM_HI = np.array([PARAM_RANGES[p][1] for p in PARAMS]) + 1e-9
 
 
 @dataclass
@@ -242,75 +239,6 @@ def failed_result(spec: EpisodeSpec, controller: str, backend: str) -> SimResult
     }
     peds = _pedestrian_columns(spec, controller, backend, empty, np.zeros((0, len(PARAMS))), [])
     return SimResult(run, peds)
-
-
-@dataclass(frozen=True)
-class SlotProfiles:
-    """Slot profiles already in the loop's form: ``values`` (n, 7) in PARAMS order,
-    ``persona_ids`` (n,). What :func:`slot_profiles` makes of a slots table; a study
-    worker builds it straight from its cached population arrays
-    (:func:`profiles_of_members`), since a DataFrame per run costs more than the
-    run's world build in small scenes."""
-
-    values: np.ndarray
-    persona_ids: list[str]
-
-
-def profiles_of_members(spec: EpisodeSpec, values: np.ndarray,
-                        persona_ids: list[str]) -> SlotProfiles:
-    """The slot profiles of ``spec`` from one population's members sorted by
-    persona_id: ``values`` (m, 7) in PARAMS order, ``persona_ids`` (m,); the same
-    profiles as ``slot_profiles(spec, assign_slots(spec, members))``."""
-    pick = slot_members(spec, len(persona_ids))
-    chosen = values[pick]
-    _check_profiles(spec, chosen)
-    return SlotProfiles(chosen, [persona_ids[i] for i in pick])
-
-
-def slot_profiles(spec: EpisodeSpec,
-                  slots: pd.DataFrame | SlotProfiles | None) -> tuple[np.ndarray, list[str]]:
-    """Validated (n, 7) profile array in PARAMS order and the persona ids of the slots."""
-    n = spec.n_peds
-    if slots is None:
-        return np.tile([DEFAULT_PROFILE[p] for p in PARAMS], (n, 1)), ["default"] * n
-    if isinstance(slots, SlotProfiles):
-        if len(slots.persona_ids) != n or slots.values.shape != (n, len(PARAMS)):
-            raise InputError(f"slots for {spec.id}: expected {n} profiles (one per pedestrian), "
-                             f"got {len(slots.persona_ids)}")
-        return slots.values, slots.persona_ids
-    missing = [c for c in ("persona_id", *PARAMS) if c not in slots.columns]
-    if missing:
-        raise InputError(f"slots for {spec.id}: missing column(s) {', '.join(missing)}")
-    if len(slots) != n:
-        raise InputError(
-            f"slots for {spec.id}: expected {n} rows (one per pedestrian), got {len(slots)}"
-        )
-    # one column at a time (a multi-column selection or a whole-table to_numpy
-    # costs ~10x more)
-    values = np.column_stack([slots[p].to_numpy(dtype=np.float64) for p in PARAMS])
-    ids = [str(x) for x in slots["persona_id"].tolist()]
-    if "slot" in slots.columns:
-        slot = slots["slot"].to_numpy()
-        if not np.array_equal(slot, np.arange(n)):  # usually already in slot order
-            if sorted(slot.tolist()) != list(range(n)):
-                raise InputError(f"slots for {spec.id}: column 'slot' must hold 0..{n - 1}")
-            order = np.argsort(slot, kind="stable")
-            values, ids = values[order], [ids[i] for i in order]
-    _check_profiles(spec, values)
-    return values, ids
-
-
-def _check_profiles(spec: EpisodeSpec, values: np.ndarray) -> None:
-    """InputError naming the first parameter, then slot, outside its range."""
-    bad = ~np.isfinite(values) | (values < _PARAM_LO) | (values > _PARAM_HI)
-    if bad.any():
-        j = int(np.flatnonzero(bad.any(axis=0))[0])  # first parameter, then first slot
-        k = int(np.flatnonzero(bad[:, j])[0])
-        lo, hi = PARAM_RANGES[PARAMS[j]]
-        raise InputError(
-            f"slots for {spec.id}: {PARAMS[j]} = {float(values[k, j])} at slot {k} "
-            f"is not a number in [{lo}, {hi}]"
-        )
 
 
 @dataclass
