@@ -1,6 +1,7 @@
 """The speed paths give the one-step-at-a-time results: quiet stretches (sim.quiet), their
 rerun when a stretch was not quiet, and a worker's cached slot profiles (engine.worker)."""
 
+import dataclasses
 import gc
 import json
 import weakref
@@ -14,7 +15,7 @@ from popnavshift.engine.worker import Context, run_batch
 from popnavshift.episodes import assign_slots, get_episode
 from popnavshift.sim.quiet import NotQuiet
 from popnavshift.sim.run import simulate
-from test_sim_run import Orca, members, rows
+from test_sim_run import Orca, Straight, members, one_pedestrian, rows
 
 EPISODES = ("head_on-w2.4-d0.06-s1.0-v1", "sidewalk-w3.0-d0.12-s0.6-v2",
             "crossing-w1.8-d0.2-s1.0-v1", "obstruction-w4.2-d0.12-s0.6-v3",
@@ -114,3 +115,14 @@ def test_a_run_leaves_no_recording_alive(monkeypatch):
         simulate(spec, None, controller)
     gc.collect()
     assert len(recordings) == 2 and all(ref() is None for ref in recordings)
+
+
+def test_a_wall_contact_inside_a_stretch_reruns_the_run(stretch_log):
+    """A robot that drives into a wall far from everyone touches it inside a stretch:
+    the collision record must catch it, and the run must come out as step by step."""
+    spec = one_pedestrian(get_episode("sidewalk-w2.4-d0.06-s1.0-v1"))
+    spec = dataclasses.replace(spec, robot_goal=(4.0, 5.0))  # beyond the wall at y = 1.2
+    fast, slow = (simulate(spec, None, Straight(), stretches=s) for s in (True, False))
+    assert fast.run["outcome"] == "world_collision"
+    assert json.dumps(rows(fast)) == json.dumps(rows(slow))
+    assert stretch_log["not_quiet"] == 1
