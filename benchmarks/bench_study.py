@@ -1,11 +1,17 @@
-"""Time the paper's main grid (or a fixed fraction of it) on N workers.
+"""Time a study (the paper's main grid, a fraction of it, or any study file) on N workers.
 
-Prints runs/s, total minutes, the scaling from 1 to 2 workers, peak memory, and
-(with --bare) the ratio of the full stack to bare navground from the simulation
-bench (popnavshift.sim.bench). Not a test: run it by hand on a quiet machine.
+Prints, per worker count: runs/s (wall clock), the CPU time per run (workers and
+parent, local executor only: Ray's workers are not our child processes), the
+scaling from the first to the last worker count, peak memory, and whether every
+row's study tables are identical to the first row's (a local Ray instance is
+started before the timing, on 127.0.0.1). With --bare it also runs
+the simulation bench (popnavshift.sim.bench). Not a test: run it by hand; on a
+shared machine compare the CPU figures, the wall clock is only as quiet as the
+machine.
 
     .venv/bin/python benchmarks/bench_study.py                   # variant 1 only (1/3 grid)
     .venv/bin/python benchmarks/bench_study.py --fraction 1      # the whole main grid
+    .venv/bin/python benchmarks/bench_study.py --study my.yaml --executor ray --workers 1 2
 """
 
 from __future__ import annotations
@@ -17,9 +23,14 @@ import shutil
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
+
+import pandas as pd
 
 from popnavshift.engine.runner import population_settings, run_population_stages, run_study
 from popnavshift.engine.study import load_study, study_from_dict
+
+TABLES = ("runs", "pedestrians")
 
 
 def grid_study(fraction: float):
@@ -31,47 +42,93 @@ def grid_study(fraction: float):
     return study_from_dict(paper)
 
 
-def time_study(study, workers: int, populations_from: Path | None) -> dict:
-    folder = Path(tempfile.mkdtemp(prefix=f"bench-w{workers}-"))
+def _cpu(who: int) -> float:
+    usage = resource.getrusage(who)
+    return usage.ru_utime + usage.ru_stime
+
+
+def time_study(study, workers: int, populations_from: Path, executor: str,
+               address: str | None) -> tuple[dict, Path]:
+    """One timed run of ``study`` in a fresh folder (population stages copied in, so
+    only the runs and the compaction are timed); returns its row and the folder."""
+    folder = Path(tempfile.mkdtemp(prefix=f"bench-{executor}-w{workers}-"))
+    for f in populations_from.iterdir():
+        if f.is_file():
+            shutil.copy(f, folder / f.name)
+    shutil.copytree(populations_from / "figures", folder / "figures")
+    own_ray = executor == "ray" and address is None
+    if own_ray:  # the instance's start is not timed
+        import ray
+
+        ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False,
+                 _node_ip_address="127.0.0.1")
+    cpu_self, cpu_children = _cpu(resource.RUSAGE_SELF), _cpu(resource.RUSAGE_CHILDREN)
+    started = time.perf_counter()
     try:
-        if populations_from is not None:  # time only the simulation, not the population stages
-            for f in populations_from.iterdir():
-                if f.is_file():
-                    shutil.copy(f, folder / f.name)
-            shutil.copytree(populations_from / "figures", folder / "figures")
-        started = time.perf_counter()
-        report = run_study(study, folder, workers=workers, show_progress=False)
-        seconds = time.perf_counter() - started
-        return {
-            "workers": workers,
-            "runs": report.executed,
-            "seconds": round(seconds, 2),
-            "runs_per_s": round(report.executed / seconds, 1),
-            "minutes": round(seconds / 60, 2),
-        }
+        report = run_study(study, folder, workers=workers, executor_name=executor,
+                           address=address, show_progress=False)
     finally:
-        shutil.rmtree(folder, ignore_errors=True)
+        seconds = time.perf_counter() - started
+        if own_ray:
+            ray.shutdown()
+    row: dict[str, Any] = {
+        "executor": executor,
+        "workers": workers,
+        "runs": report.executed,
+        "seconds": round(seconds, 2),
+        "runs_per_s": round(report.executed / seconds, 1),
+        "minutes": round(seconds / 60, 2),
+        "parent_cpu_s": round(_cpu(resource.RUSAGE_SELF) - cpu_self, 2),
+    }
+    if executor == "local" and workers > 1:
+        worker_cpu = _cpu(resource.RUSAGE_CHILDREN) - cpu_children
+        row["worker_cpu_s"] = round(worker_cpu, 2)
+        row["worker_cpu_ms_per_run"] = round(1e3 * worker_cpu / max(1, report.executed), 3)
+    elif executor == "local":  # one worker runs in this process
+        row["worker_cpu_ms_per_run"] = round(1e3 * row["parent_cpu_s"] / max(1, report.executed), 3)
+    return row, folder
+
+
+def same_tables(a: Path, b: Path) -> bool:
+    return all(pd.read_parquet(a / f"{t}.parquet").equals(pd.read_parquet(b / f"{t}.parquet"))
+               for t in TABLES)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--fraction", type=float, default=1 / 3, help="share of the variants")
+    parser.add_argument("--study", help="a study name or YAML file instead of the paper grid")
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--executor", choices=("local", "ray"), default="local")
+    parser.add_argument("--address", help="Ray cluster address (default: a local instance)")
     parser.add_argument("--bare", action="store_true", help="also run the simulation bench")
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args()
 
-    study = grid_study(args.fraction)
+    study = load_study(args.study) if args.study else grid_study(args.fraction)
     pops = Path(tempfile.mkdtemp(prefix="bench-pops-"))
-    run_population_stages(pops, population_settings(study), show_progress=False)
-    rows = [time_study(study, w, pops) for w in args.workers]
-    shutil.rmtree(pops, ignore_errors=True)
-    out: dict = {"study": study.name, "rows": rows}
+    folders: list[Path] = []
+    try:
+        run_population_stages(pops, population_settings(study), show_progress=False)
+        rows = []
+        for w in args.workers:
+            row, folder = time_study(study, w, pops, args.executor, args.address)
+            rows.append(row)
+            folders.append(folder)
+        identical = [same_tables(folders[0], f) for f in folders[1:]]
+    finally:
+        for f in [pops, *folders]:
+            shutil.rmtree(f, ignore_errors=True)
+    out: dict = {"study": study.name, "rows": rows,
+                 "tables_identical_to_first_row": all(identical)}
     if len(rows) >= 2:
-        out["scaling_1_to_2"] = round(rows[1]["runs_per_s"] / rows[0]["runs_per_s"], 2)
-    full_grid_runs = 9984
-    best = max(rows, key=lambda r: r["runs_per_s"])
-    out["projected_main_grid_minutes"] = round(full_grid_runs / best["runs_per_s"] / 60, 2)
+        first = rows[0]
+        out["scaling"] = {f"{first['workers']}_to_{r['workers']}":
+                          round(r["runs_per_s"] / first["runs_per_s"], 2) for r in rows[1:]}
+    if not args.study:
+        full_grid_runs = 9984
+        best = max(rows, key=lambda r: r["runs_per_s"])
+        out["projected_main_grid_minutes"] = round(full_grid_runs / best["runs_per_s"] / 60, 2)
     out["peak_rss_mb"] = {
         "parent": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
         "largest_worker": round(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024, 1),

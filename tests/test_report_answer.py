@@ -57,6 +57,9 @@ def test_the_report_opens_with_the_headline_box(study):
                  "evidence_power", "evidence_curve", "evidence_crossovers"):
         assert (study / "report" / "tables" / f"{name}.csv").exists(), name
     assert (study / "report" / "figures" / "evidence_nulls.png").exists()
+    # with 3 and 2 null replicates no p can reach 0.05: Table I is labelled descriptive
+    table1 = page[page.index('id="table1"'):]
+    assert "Descriptive: for the matched intervention and the population pairs" in table1
 
 
 def test_the_headline_is_recomputed_from_the_parquet_tables(study):

@@ -10,7 +10,8 @@ from popnavshift.episodes.scenes import distance_to_walls
 from popnavshift.errors import InputError
 from popnavshift.sim.bench import synthetic_population
 from popnavshift.sim.pedestrians import entry_fraction
-from popnavshift.sim.run import _wall_distances, slot_profiles
+from popnavshift.sim.run import _wall_distances
+from popnavshift.sim.slots import slot_profiles
 
 
 def test_slot_rows_in_any_order_give_the_profiles_in_slot_order():

@@ -16,7 +16,7 @@ import math
 import os
 import sys
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, NoReturn
 
 import typer
 from rich.markup import escape
@@ -153,7 +153,7 @@ def main() -> None:
         sys.exit(130)
 
 
-def fail(message: str) -> None:
+def fail(message: str) -> NoReturn:
     """Print one red ``error:`` line (escaped, redacted) and exit with code 2."""
     one_line = " ".join(message.split())
     console.print(f"[bold red]error:[/] {say(one_line)}", highlight=False, soft_wrap=True)
@@ -180,7 +180,7 @@ _USAGE_ERRORS, _ABORTS = _usage_errors()
 _INTERRUPTS: tuple[type[BaseException], ...] = (KeyboardInterrupt, *_ABORTS)
 
 
-def _usage_error(exc: BaseException) -> None:
+def _usage_error(exc: BaseException) -> NoReturn:
     if type(exc).__name__ == "NoArgsIsHelpError":  # `popnavshift run` with no args: help
         exc.show()  # type: ignore[attr-defined]
         sys.exit(2)

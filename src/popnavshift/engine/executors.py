@@ -64,8 +64,9 @@ def run_ray(
         ) from None
     started_here = not ray.is_initialized()
     if started_here:
-        kwargs = (
-            {"address": address} if address else {"num_cpus": workers, "include_dashboard": False}
+        kwargs = (  # a local instance listens on the loopback only
+            {"address": address} if address else
+            {"num_cpus": workers, "include_dashboard": False, "_node_ip_address": "127.0.0.1"}
         )
         try:
             ray.init(log_to_driver=False, **kwargs)
@@ -73,8 +74,8 @@ def run_ray(
             raise ConfigError(
                 f"could not start or join Ray at {address or 'local'}: {exc}"
             ) from None
-    remote = ray.remote(num_cpus=1)(run_batch)
-    ctx_ref = ray.put(context)
+    remote = ray.remote(num_cpus=1)(_run_batch_ray)
+    ctx_ref = [ray.put(context)]  # in a list: Ray then passes the reference, not the value
     limit = 2 * max(1, int(ray.available_resources().get("CPU", workers)))
     todo = iter(batches)
     pending: list = []
@@ -94,6 +95,22 @@ def run_ray(
             ray.cancel(ref, force=True)
         if started_here:
             ray.shutdown()
+
+
+_RAY_CONTEXT: tuple[str, Context] | None = None
+
+
+def _run_batch_ray(batch: Batch, context_ref: list) -> Result:
+    """:func:`run_batch` in a Ray worker, with the context fetched once per worker
+    process: the worker's caches (:func:`.worker._members`) are kept per context
+    object, and Ray would otherwise deserialise a new one for every task."""
+    import ray
+
+    global _RAY_CONTEXT
+    ref = context_ref[0]
+    if _RAY_CONTEXT is None or _RAY_CONTEXT[0] != ref.hex():
+        _RAY_CONTEXT = (ref.hex(), ray.get(ref))
+    return run_batch(batch, _RAY_CONTEXT[1])
 
 
 def executor(name: str):

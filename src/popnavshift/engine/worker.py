@@ -18,8 +18,10 @@ import threading
 import time
 from dataclasses import dataclass
 
+import numpy as np
 import pandas as pd
 
+from ..tables import PARAMS
 from .plan import NO_ROBOT, Batch
 
 
@@ -69,13 +71,21 @@ def exit_with_parent(parent_pid: int) -> None:
     threading.Thread(target=watch, name="popnavshift-parent-watch", daemon=True).start()
 
 
-def _members(ctx: Context, mapping: str, population: str) -> pd.DataFrame:
-    """One population's members (sorted by persona id), cached per worker and context."""
+def _members(ctx: Context, mapping: str, population: str) -> tuple[np.ndarray, list[str]]:
+    """One population's members sorted by persona id, as the (m, 7) profile array in
+    PARAMS order and their persona ids; cached per worker and context (the slots of a
+    run are then rows of these arrays, see :func:`popnavshift.sim.slots.profiles_of_members`)."""
     global _MEMBERS
     if _MEMBERS is None or _MEMBERS[0] is not ctx:
         groups = ctx.populations.groupby(["mapping", "population"], sort=False)
-        _MEMBERS = (ctx, {k: g.sort_values("persona_id", kind="stable") for k, g in groups})
+        _MEMBERS = (ctx, {k: _arrays(g.sort_values("persona_id", kind="stable"))
+                          for k, g in groups})
     return _MEMBERS[1][(mapping, population)]
+
+
+def _arrays(members: pd.DataFrame) -> tuple[np.ndarray, list[str]]:
+    values = np.column_stack([members[p].to_numpy(dtype=np.float64) for p in PARAMS])
+    return values, [str(x) for x in members["persona_id"].tolist()]
 
 
 _MEMBERS: tuple[Context, dict] | None = None
@@ -85,20 +95,22 @@ def run_batch(
     batch: Batch, context: Context | None = None
 ) -> tuple[str, pd.DataFrame, pd.DataFrame, float]:
     """Simulate every run of ``batch``; returns (batch id, runs, pedestrians, seconds)."""
-    from ..episodes.specs import assign_slots, get_episode, seed_set_of
+    from ..episodes.specs import get_episode, seed_set_of
     from ..populations.perturb import profile_set_of
     from ..sim.run import ControllerError, failed_result, pedestrian_table, simulate
+    from ..sim.slots import SlotProfiles, profiles_of_members
 
     ctx = context or _CONTEXT
     assert ctx is not None, "worker used before init_worker"
     started = time.perf_counter()
     spec = get_episode(batch.episode, seed=ctx.episode_seed)
-    slots: dict[str, pd.DataFrame] = {}  # per population: the same for every controller
+    slots: dict[str, SlotProfiles] = {}  # per population: the same for every controller
     run_rows, ped_columns = [], []
     ped_keys: dict[str, list] = {}
     for run in batch.runs:
         if run.population not in slots:
-            slots[run.population] = assign_slots(spec, _members(ctx, batch.mapping, run.population))
+            values, ids = _members(ctx, batch.mapping, run.population)
+            slots[run.population] = profiles_of_members(spec, values, ids)
         ctrl = None if run.controller == NO_ROBOT else run.controller
         error = None
         try:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
-from functools import lru_cache
+from functools import cache, lru_cache
 
 import numpy as np
 import pandas as pd
@@ -300,11 +300,17 @@ def get_episode(episode_id: str, seed: int = 0) -> EpisodeSpec:
         if not seed_text.isdigit():
             raise ConfigError(f"episode {episode_id!r}: seed set must be {SEED_SET_SEP}<integer>")
         episode_id, seed = base, int(seed_text)
-    known = {f"{c.key}-v{v}": (c, v) for c in all_cells() for v in VARIANTS}
+    known = _episode_cells()
     if episode_id not in known:
         raise UnknownNameError("episode", episode_id, known)
     cell, variant = known[episode_id]
     return make_episode(cell, variant, int(seed))
+
+
+@cache
+def _episode_cells() -> dict[str, tuple[Cell, int]]:
+    """Episode id (without seed set) → (cell, variant); built once per process."""
+    return {f"{c.key}-v{v}": (c, v) for c in all_cells() for v in VARIANTS}
 
 
 def episodes_table(episodes) -> pd.DataFrame:
@@ -340,11 +346,16 @@ def assign_slots(spec: EpisodeSpec, members: pd.DataFrame) -> pd.DataFrame:
     if members.empty:
         raise InputError("population members: the table is empty")
     ordered = members.sort_values("persona_id", kind="stable").reset_index(drop=True)
-    u = np.asarray(spec.slot_draws, dtype=float)
-    pick = np.minimum((u * len(ordered)).astype(np.int64), len(ordered) - 1)
-    out = ordered.iloc[pick].reset_index(drop=True)
-    out.insert(0, "slot", np.arange(len(u), dtype=np.int64))
+    out = ordered.iloc[slot_members(spec, len(ordered))].reset_index(drop=True)
+    out.insert(0, "slot", np.arange(spec.n_peds, dtype=np.int64))
     return out
+
+
+def slot_members(spec: EpisodeSpec, n_members: int) -> np.ndarray:
+    """(n_peds,) index of each slot's member among ``n_members`` sorted by persona_id:
+    ⌊u_k · n⌋ (see :func:`assign_slots`)."""
+    u = np.asarray(spec.slot_draws, dtype=float)
+    return np.minimum((u * n_members).astype(np.int64), n_members - 1)
 
 
 __all__ = [
@@ -356,4 +367,5 @@ __all__ = [
     "episodes_table",
     "get_episode",
     "make_episode",
+    "slot_members",
 ]

@@ -154,6 +154,9 @@ def reversals_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
                          "populations) whose order flips, pooled over cells and controller pairs; "
                          "95% cluster-bootstrap intervals resample cells. Completed cells: every "
                          "controller succeeded on every variant under both populations."))
+    note = descriptive_note(a.tables.get("evidence_headline"), a.tables.get("evidence_power"))
+    if note:
+        s.blocks.append(para(note, "warn"))
     cols = ["Metric"] + ["Ours", "95% CI", "Reversals / comparable", "Paper"] * 2
     groups = [("", 1), ("All cells", 4), ("Completed cells", 4)]
     pops = a.cells["population"].nunique() if a.cells is not None else 0
@@ -171,6 +174,22 @@ def reversals_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
         s.blocks.append(figure(figs["reversal_rates"], out, "Reversal rates with 95% intervals; "
                                "black diamonds: the paper's values."))
     return s
+
+
+def descriptive_note(head: pd.DataFrame | None, power: pd.DataFrame | None) -> str:
+    """Why Table I is descriptive: which of its comparisons no rate of beats its null."""
+    if head is None or power is None or head.empty or power.empty:
+        return ""
+    raw = power[power["rule"] == "raw"]
+    within = [c for c, g in raw.groupby("comparison", sort=False)
+              if not (g["verdict"] == "beats the null").any()]
+    if not within:
+        return ""
+    words = {"matched": "the matched intervention", "all_pairs": "the population pairs"}
+    which = " and ".join(words.get(c, c) for c in within)
+    return (f"Descriptive: for {which}, no raw rate below beats its null at the same design "
+            "(see 'The answer'): these rates reproduce the paper's statistic, and most of "
+            "them are what noise alone produces.")
 
 
 def noise_section(a: Analysis) -> Section:

@@ -211,14 +211,17 @@ class ResponseLayer:
         self.wp = self.fst[:, 1:3]
         self.stage = self.ist[:, IST.index("stage")]
         self.flags = self.ist[:, IST.index("flags")]
-        #: the response kernel's arguments after the per-step ones (:func:`advance`
-        #: takes them too); the kernel updates the state arrays in place
-        self.state = (
-            self.prm, self.fst, self.ist, self.buf, PED_RADIUS + robot_radius,
-            int(spec.passing_side), PED_RADIUS + WP_CLEARANCE,
-            np.asarray(spec.walls, dtype=np.float64).reshape(-1, 4),
-            np.asarray(spec.obstacles, dtype=np.float64).reshape(-1, 3),
-        )
+        walls = np.asarray(spec.walls, dtype=np.float64).reshape(-1, 4)
+        obstacles = np.asarray(spec.obstacles, dtype=np.float64).reshape(-1, 3)
+        r_sum, side = PED_RADIUS + robot_radius, int(spec.passing_side)
+        need = PED_RADIUS + WP_CLEARANCE
+        #: the response kernel's arguments after the per-step ones; the kernel
+        #: updates the state arrays in place
+        self.state = (self.prm, self.fst, self.ist, self.buf, r_sum, side, need, walls, obstacles)
+        #: the same for :func:`advance`, the three scalars packed in one array (a
+        #: kernel call costs ~0.08 us per argument, and the loop calls it every step)
+        self.packed_state = (self.prm, self.fst, self.ist, self.buf,
+                             np.array([r_sum, side, need]), walls, obstacles)
 
     def step(self, t: float, P: np.ndarray, active: np.ndarray, R: np.ndarray,
              R_prev: np.ndarray, robot_on: bool) -> None:
@@ -286,7 +289,7 @@ def _waypoint(px, py, ex, ey, side, offset, need, walls, obstacles, out):
     out[0], out[1] = px + WP_AHEAD * ex, py + WP_AHEAD * ey
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _respond(t, P, active, R, R_prev, robot_on, prm, fst, ist, buf, r_sum, side, need, walls,
              obstacles):
     n_speed = 0
@@ -357,7 +360,7 @@ def _respond(t, P, active, R, R_prev, robot_on, prm, fst, ist, buf, r_sum, side,
     return n_speed, n_target
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def crossed_exit(P, Pprev, E, exits, active, idx_out, frac_out):
     """Pedestrians that crossed their exit line this step: count, indices, step fraction.
 
@@ -378,7 +381,7 @@ def crossed_exit(P, Pprev, E, exits, active, idx_out, frac_out):
     return count
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def entry_fraction(x0, y0, x1, y1, cx, cy, radius):
     """First s ∈ [0, 1] at which the step (x0, y0) → (x1, y1) [m] enters the disc of
     centre (cx, cy) and ``radius`` [m]; 0 if it starts inside, −1 if it never enters."""
@@ -395,19 +398,20 @@ def entry_fraction(x0, y0, x1, y1, cx, cy, radius):
     return s if 0.0 <= s <= 1.0 else -1.0
 
 
-@njit(cache=True)
-def advance(t, step, poses, pos, robot_on, robot_active, goal, goal_radius, no_robot, active,
-            frac, arrival_step, arrival_frac, prm, fst, ist, buf, r_sum, side, need, walls,
-            obstacles):
-    """The stepping loop's array work after navground step ``step`` (time ``t`` [s]).
+@njit(cache=True, inline="always")
+def advance(step, poses, pos, robot_on, robot_active, goal, active, fracs, arrival_step, prm, fst,
+            ist, buf, consts, walls, obstacles):
+    """The stepping loop's array work after navground step ``step`` (time step·DT [s]).
 
     In order: copy x, y of ``poses`` (agents, 3), the step's float32 record, into
     ``pos[step]`` ((steps + 1, agents, 2) [m], robot last); mark the pedestrians that
-    crossed their exit (``active`` False, ``arrival_step``/``arrival_frac`` set, indices
-    in ``buf[0, :k]``); if ``robot_active``, test whether the robot entered the disc
-    (``goal``, ``goal_radius``), and if so treat it as gone; run the response layer
-    (``no_robot`` stands in for the robot's positions when it is not in the scene).
-    The arguments from ``prm`` on are :attr:`ResponseLayer.state`.
+    crossed their exit (``active`` False, ``arrival_step`` and ``fracs[1]`` (n,) the
+    step and its fraction set, indices in ``buf[0, :k]``; ``fracs[0]`` is scratch);
+    if ``robot_active``, test whether the robot entered the goal disc (``goal`` (3,):
+    x, y, radius), and if so treat it as gone; run the response layer (at the origin
+    when the robot is not in the scene). The arguments from ``prm`` on are
+    :attr:`ResponseLayer.packed_state`. Few, packed arguments: the call's cost grows
+    with their number, and the loop makes it every step.
 
     Returns (k, goal-entry fraction of the step or −1, n_speed, n_target); the last
     two are for :meth:`ResponseLayer.write`.
@@ -418,6 +422,7 @@ def advance(t, step, poses, pos, robot_on, robot_active, goal, goal_radius, no_r
         pos[step, a, 1] = poses[a, 1]
     now, before = pos[step], pos[step - 1]
     idx = buf[0]
+    frac, arrival_frac = fracs[0], fracs[1]
     k = crossed_exit(now[:n], before[:n], prm[:, 6:8], prm[:, 9], active, idx, frac)
     for j in range(k):
         active[idx[j]] = False
@@ -426,9 +431,15 @@ def advance(t, step, poses, pos, robot_on, robot_active, goal, goal_radius, no_r
     s = -1.0
     if robot_active:
         s = entry_fraction(before[n, 0], before[n, 1], now[n, 0], now[n, 1], goal[0], goal[1],
-                           goal_radius)
+                           goal[2])
         robot_on = robot_on and s < 0.0
-    R, R_prev = (now[n], before[n]) if robot_on else (no_robot, no_robot)
-    n_speed, n_target = _respond(t, now[:n], active, R, R_prev, robot_on, prm, fst, ist, buf,
-                                 r_sum, side, need, walls, obstacles)
+    if robot_on:
+        n_speed, n_target = _respond(step * DT, now[:n], active, now[n], before[n], robot_on,
+                                     prm, fst, ist, buf, consts[0], np.int64(consts[1]),
+                                     consts[2], walls, obstacles)
+    else:
+        origin = np.zeros(2)
+        n_speed, n_target = _respond(step * DT, now[:n], active, origin, origin, robot_on,
+                                     prm, fst, ist, buf, consts[0], np.int64(consts[1]),
+                                     consts[2], walls, obstacles)
     return k, s, n_speed, n_target

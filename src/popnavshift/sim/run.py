@@ -29,20 +29,19 @@ from navground import sim
 from numba import njit
 
 from ..episodes.specs import PED_RADIUS, EpisodeSpec
-from ..errors import ConfigError, InputError, PopNavShiftError
+from ..errors import ConfigError, PopNavShiftError
 from ..plugins import make_backend, make_controller
-from ..tables import PARAM_RANGES, PARAMS
+from ..tables import PARAMS
 from .controllers import GOAL_TOLERANCE, ROBOT_RADIUS, ROBOT_SENSING_RANGE, LoopDriver
 from .controllers._rollout import sense_neighbors
 from .pedestrians import ResponseLayer, advance
+from .quiet import NotQuiet, quiet_steps, replay_quiet, robot_touched
+from .slots import SlotProfiles, slot_profiles
 from .world import DT, MAX_STEPS, SimWorld, build_world, remove_agent, stop_agent
 
-DEFAULT_PROFILE = {p: (lo + hi) / 2 for p, (lo, hi) in PARAM_RANGES.items()}
 V_STOP = 0.05  # [m/s] an agent moving slower than this is stopped
 TIME_LIMIT = MAX_STEPS * DT  # [s] travel time of a failed robot run
-# bounds of the slot profile check, PARAMS order
-_PARAM_LO = np.array([PARAM_RANGES[p][0] for p in PARAMS]) - 1e-9
-_PARAM_HI = np.array([PARAM_RANGES[p][1] for p in PARAMS]) + 1e-9
+RECHECK_STEPS = 5  # after a step that could not start a quiet stretch, test again this later
 
 
 @dataclass
@@ -82,39 +81,33 @@ def pedestrian_table(columns: list[dict], keys: dict[str, list] | None = None) -
 
 def simulate(
     spec: EpisodeSpec,
-    slots: pd.DataFrame | None,
+    slots: pd.DataFrame | SlotProfiles | None,
     controller,
     backend: str = "orca",
     *,
     record: bool = False,
+    stretches: bool = True,
 ) -> SimResult:
     """Run ``spec`` with slot profiles ``slots`` (see :func:`episodes.assign_slots`).
 
-    ``slots`` None gives every pedestrian the mid-range profile. ``controller`` is a
+    ``slots`` None gives every pedestrian the mid-range profile; a
+    :class:`SlotProfiles` is used as it is. ``controller`` is a
     controller id (see :func:`resolve_controller`), a ControllerFactory, or
     None/"none" for the no-robot baseline. ``record`` adds a trajectory for replays.
+    ``stretches`` False steps every step from Python (:mod:`.quiet` lets navground
+    run the steps that need nothing from the loop; the results are the same).
     Raises :class:`ControllerError` when the controller raises (see
     :func:`failed_result` for the row a study records instead).
     """
     profiles, persona_ids = slot_profiles(spec, slots)
     factory, controller_name = resolve_controller(controller)
     ped_backend = make_backend(backend)
-    sw: SimWorld | None = None
-    driver: LoopDriver | None = None
     try:
-        if hasattr(factory, "loop_driver"):
-            driver = factory.loop_driver()
-        sw = build_world(spec, profiles[:, 0], driver or factory, ped_backend)
-        if driver is not None:  # navground hands behaviours its float32 time step
-            driver.start(cast(sim.Agent, sw.robot), sw.world, float(np.float32(DT)))
-        layer = ResponseLayer(sw.ped_behaviors, spec, profiles, ROBOT_RADIUS)
-        trace = _Loop(spec, sw, layer, driver, record).execute()
-    except Exception as exc:
-        robot = sw.robot_behavior if sw is not None else None
-        blamed = _blame_controller(exc, controller_name, (factory, robot, driver))
-        if blamed is None:
-            raise
-        raise blamed from exc
+        trace = _run(spec, profiles, factory, controller_name, ped_backend, record,
+                     stretches=stretches and not record)
+    except NotQuiet:  # a quiet stretch was not: the run again, step by step
+        trace = _run(spec, profiles, factory, controller_name, ped_backend, record,
+                     stretches=False)
     run = {
         **_episode_columns(spec),
         "controller": controller_name,
@@ -126,6 +119,33 @@ def simulate(
     }
     peds = _pedestrian_columns(spec, controller_name, backend, trace, profiles, persona_ids)
     return SimResult(run, peds, trace.trajectory(spec) if record else None)
+
+
+def _run(spec: EpisodeSpec, profiles: np.ndarray, factory, controller_name: str,
+         ped_backend, record: bool, stretches: bool) -> _Trace:
+    """Build the run's world and step it; a controller's exception becomes a
+    :class:`ControllerError`."""
+    sw: SimWorld | None = None
+    driver: LoopDriver | None = None
+    try:
+        if hasattr(factory, "loop_driver"):
+            driver = factory.loop_driver()
+        sw = build_world(spec, profiles[:, 0], driver or factory, ped_backend)
+        if driver is not None:  # navground hands behaviours its float32 time step
+            driver.start(cast(sim.Agent, sw.robot), sw.world, float(np.float32(DT)))
+        layer = ResponseLayer(sw.ped_behaviors, spec, profiles, ROBOT_RADIUS)
+        return _Loop(spec, sw, layer, driver, record, stretches).execute()
+    except NotQuiet:
+        raise
+    except Exception as exc:
+        robot = sw.robot_behavior if sw is not None else None
+        blamed = _blame_controller(exc, controller_name, (factory, robot, driver))
+        if blamed is None:
+            raise
+        raise blamed from exc
+    finally:  # the recording callback (see _Loop.execute) would keep world and run alive:
+        if sw is not None:  # a reference cycle through C++ that Python cannot collect
+            sw.world.reset_callbacks()
 
 
 def _episode_columns(spec: EpisodeSpec) -> dict:
@@ -222,41 +242,6 @@ def failed_result(spec: EpisodeSpec, controller: str, backend: str) -> SimResult
     return SimResult(run, peds)
 
 
-def slot_profiles(spec: EpisodeSpec, slots: pd.DataFrame | None) -> tuple[np.ndarray, list[str]]:
-    """Validated (n, 7) profile array in PARAMS order and the persona ids of the slots."""
-    n = spec.n_peds
-    if slots is None:
-        return np.tile([DEFAULT_PROFILE[p] for p in PARAMS], (n, 1)), ["default"] * n
-    columns = list(slots.columns)
-    missing = [c for c in ("persona_id", *PARAMS) if c not in columns]
-    if missing:
-        raise InputError(f"slots for {spec.id}: missing column(s) {', '.join(missing)}")
-    if len(slots) != n:
-        raise InputError(
-            f"slots for {spec.id}: expected {n} rows (one per pedestrian), got {len(slots)}"
-        )
-    # one object array, cells as Python scalars: column selection and sort_values
-    # would cost ~1 ms per run
-    table = slots.to_numpy(dtype=object)
-    if "slot" in columns:
-        slot = table[:, columns.index("slot")]
-        if not np.array_equal(slot, np.arange(n)):  # usually already in slot order
-            if sorted(slot.tolist()) != list(range(n)):
-                raise InputError(f"slots for {spec.id}: column 'slot' must hold 0..{n - 1}")
-            table = table[np.argsort(slot, kind="stable")]
-    values = table[:, [columns.index(p) for p in PARAMS]].astype(np.float64)
-    bad = ~np.isfinite(values) | (values < _PARAM_LO) | (values > _PARAM_HI)
-    if bad.any():
-        j = int(np.flatnonzero(bad.any(axis=0))[0])  # first parameter, then first slot
-        k = int(np.flatnonzero(bad[:, j])[0])
-        lo, hi = PARAM_RANGES[PARAMS[j]]
-        raise InputError(
-            f"slots for {spec.id}: {PARAMS[j]} = {float(values[k, j])} at slot {k} "
-            f"is not a number in [{lo}, {hi}]"
-        )
-    return values, [str(x) for x in table[:, columns.index("persona_id")]]
-
-
 @dataclass
 class _Trace:
     """What the loop records (positions [m] per step; agent n is the robot)."""
@@ -308,8 +293,13 @@ class _Loop:
     """One run's stepping loop; state lives on the instance, arrays are preallocated."""
 
     def __init__(self, spec: EpisodeSpec, sw: SimWorld, layer: ResponseLayer,
-                 driver: LoopDriver | None, record: bool) -> None:
+                 driver: LoopDriver | None, record: bool, stretches: bool = False) -> None:
         self.spec, self.sw, self.layer, self.record = spec, sw, layer, record
+        # quiet stretches (see .quiet): not while recording flags, and with a loop
+        # driver only if it can tell when a step without neighbours changes nothing
+        self.driver_quiet = getattr(driver, "quiet", None)
+        self.stretches = stretches and not record and (driver is None
+                                                       or self.driver_quiet is not None)
         self.world = sw.world
         self.driver = driver
         n = spec.n_peds
@@ -319,19 +309,24 @@ class _Loop:
         self.pos[0, :n] = spec.ped_starts
         if sw.robot is not None:
             self.pos[0, n] = spec.robot_start
-        self.goal = np.asarray(spec.robot_goal, dtype=np.float64)
+        # the robot's goal disc: x, y, radius [m]
+        self.goal = np.array([*spec.robot_goal, GOAL_TOLERANCE], dtype=np.float64)
         self.active = np.ones(n, dtype=np.bool_)
         self.no_robot = np.zeros(2)
-        self.trace = _Trace(n, self.pos, 0, np.full(n, -1, np.int64), np.ones(n),
+        # row 0: exit-crossing fractions of the current step (scratch); row 1: of
+        # each pedestrian's crossing step (1 until it crosses)
+        self.fracs = np.zeros((2, n))
+        self.fracs[1] = 1.0
+        self.trace = _Trace(n, self.pos, 0, np.full(n, -1, np.int64), self.fracs[1],
                             sw.robot is not None)
         if record:
             self.trace.flags = np.zeros((MAX_STEPS + 1, n), np.uint8)
             self.initial_poses = np.array(
                 [[*a.position, a.orientation] for a in sw.world.agents], dtype=np.float64
             ).reshape(na, 3)
-        if driver is not None:  # what the driver senses: the neighbours' rows and slots
-            self.sensed = np.empty((n, 5))
-            self.sensed_ids = np.empty(n, np.int64)
+        # what the driver senses: the neighbours' rows and slots
+        self.sensed = np.empty((n, 5))
+        self.sensed_ids = np.empty(n, np.int64)
 
     def execute(self) -> _Trace:
         """Step until the limit, or until the robot is done (or absent) and all peds left.
@@ -345,13 +340,17 @@ class _Loop:
         self.robot = cast(sim.Agent, sw.robot)  # used only while robot_in
         self.contacts = _initial_contacts(self.spec, sw) if self.robot_in else set()
         driver = self.driver
+        stretches = self.stretches
+        config = sim.RecordConfig(pose=True, twist=driver is not None,
+                                  collisions=stretches and self.robot_in)
         rec = sim.ExperimentalRun(sw.world, time_step=DT, steps=MAX_STEPS,
                                   terminate_when_all_idle_or_stuck=False,
-                                  record_config=sim.RecordConfig(pose=True,
-                                                                 twist=driver is not None),
-                                  seed=0)
+                                  record_config=config, seed=0)
         rec.start()
-        exits_crossed, frac = layer.buf[0], np.zeros(n)
+        if stretches:  # records every step, in World.update and World.run alike
+            sw.world.add_callback(rec.update)
+        self.rec = rec
+        exits_crossed = layer.buf[0]
         n_active, step = n, 0
         robot_start = pos[0, n] if self.robot_in else self.no_robot
         layer.step(0.0, pos[0, :n], active, robot_start, robot_start, self.robot_in)
@@ -359,33 +358,50 @@ class _Loop:
             agents = sw.world.agents
             self._drive(1, np.array([[*a.position, a.orientation] for a in agents], np.float32),
                         np.array([[*a.velocity, a.angular_speed] for a in agents], np.float32))
-        # the hot loop: locals only (an attribute lookup costs ~30 ns, a call ~100 ns)
-        update, record, state, flags = sw.world.update, rec.update, layer.state, tr.flags
-        peds, goal, no_robot = sw.peds, self.goal, self.no_robot
-        arrival_step, arrival_frac = tr.arrival_step, tr.arrival_frac
+        # the hot loop: locals only (an attribute lookup costs ~30 ns, a call ~100 ns,
+        # a kernel argument ~80 ns)
+        update, packed, flags = sw.world.update, layer.packed_state, tr.flags
+        record = None if stretches else rec.update
+        world, peds, goal, fracs, arrival_step = sw.world, sw.peds, self.goal, self.fracs, \
+            tr.arrival_step
+        prm, fst, ist, speed = layer.prm, layer.fst, layer.ist, self.spec.robot_speed
+        driver_quiet, next_check = self.driver_quiet, 0
+        robot_in = robot_active = self.robot_in
         while True:
             if flags is not None:
                 flags[step] = layer.flags
-            if step == MAX_STEPS or (n_active == 0 and not self.robot_active):
+            if step == MAX_STEPS or (n_active == 0 and not robot_active):
                 break
+            if stretches and step >= next_check and not self.contacts and (
+                    driver_quiet is None or not robot_active or driver_quiet()):
+                k = quiet_steps(step, pos, robot_in, robot_active, speed, goal, active, prm,
+                                fst, ist, MAX_STEPS - 1 - step)
+                if k:
+                    self._stretch(step, k, robot_in, robot_active)
+                    step += k
+                    continue
+                next_check = step + RECHECK_STEPS
             update(DT)
-            record()
+            if record is not None:
+                record()
             step += 1
-            if self.robot_in:
-                self._robot_contacts(step)
+            if robot_in:
+                collisions = world.collisions
+                if collisions or self.contacts:
+                    robot_active = self._robot_contacts(step, collisions)
             poses = rec.poses[-1]
-            k, s, n_speed, n_target = advance(
-                step * DT, step, poses, pos, self.robot_in, self.robot_active, goal,
-                GOAL_TOLERANCE, no_robot, active, frac, arrival_step, arrival_frac, *state)
+            k, s, n_speed, n_target = advance(step, poses, pos, robot_in, robot_active, goal,
+                                              active, fracs, arrival_step, *packed)
             if k:
                 for i in exits_crossed[:k]:
                     remove_agent(peds[i], int(i))
                 n_active -= k
             if s >= 0.0:
                 self._robot_arrived(step, s)
+                robot_in = robot_active = False
             if n_speed or n_target:
                 layer.write(n_speed, n_target)
-            if driver is not None and self.robot_active and step < MAX_STEPS:
+            if driver is not None and robot_active and step < MAX_STEPS:
                 self._drive(step + 1, poses, rec.twists[-1])
         tr.steps = step
         if tr.has_robot and tr.outcome == "none":
@@ -396,25 +412,38 @@ class _Loop:
             tr.poses = np.concatenate([self.initial_poses[None], np.array(rec.poses)[:step]])
         return tr
 
+    def _stretch(self, step: int, k: int, robot_in: bool, robot_active: bool) -> None:
+        """Steps ``step`` + 1 … ``step`` + k in navground's loop, then the loop's kernel
+        over their recorded poses; :class:`NotQuiet` if one of them needed the loop."""
+        rec = self.rec
+        touched_before = len(rec.collisions) if robot_in else 0
+        self.world.run(k, DT)
+        quiet = replay_quiet(step, rec.poses[-k:], self.pos, robot_in, robot_active, self.goal,
+                             self.active, self.fracs, self.trace.arrival_step,
+                             *self.layer.packed_state, self.driver is not None and robot_active,
+                             self.sensed, self.sensed_ids)
+        if not quiet or (robot_in and robot_touched(rec.collisions, touched_before,
+                                                    self.robot._uid)):
+            raise NotQuiet
+
     def _drive(self, upcoming: int, poses: np.ndarray, twists: np.ndarray) -> None:
         """The driver's decision for navground step ``upcoming``, from the float32
         poses and twists (agents, 3) that the step's sensing will read. (Not named
         ``step``: an error is dated by the loop's ``step``, as one raised by a
         behaviour during that navground step would be.)"""
-        n = self.n
-        m = sense_neighbors(poses, twists, n, self.active, ROBOT_SENSING_RANGE,
-                            self.sensed, self.sensed_ids)
-        cast(LoopDriver, self.driver).step(upcoming, poses[n], self.sensed[:m],
-                                           self.sensed_ids[:m])
+        n, sensed, ids = self.n, self.sensed, self.sensed_ids
+        m = sense_neighbors(poses, twists, n, self.active, ROBOT_SENSING_RANGE, sensed, ids)
+        self.driver.step(upcoming, poses[n], sensed[:m], ids[:m])  # type: ignore[union-attr]
 
-    def _robot_contacts(self, step: int) -> None:
-        """Robot contacts, every step while it is in the scene; the first one stops it."""
-        collisions = self.world.collisions
-        if collisions or self.contacts:
-            self.contacts = self._count_contacts(step, collisions)
-            if self.robot_active and self.trace.outcome_step == step:
-                self.robot_active = False
-                stop_agent(self.robot)
+    def _robot_contacts(self, step: int, collisions) -> bool:
+        """Robot contacts of step ``step`` (``collisions``: the world's pairs), called
+        while the robot is in the scene and there are contacts now or the step
+        before; the first one stops the robot. Returns whether it is still active."""
+        self.contacts = self._count_contacts(step, collisions)
+        if self.robot_active and self.trace.outcome_step == step:
+            self.robot_active = False
+            stop_agent(self.robot)
+        return self.robot_active
 
     def _robot_arrived(self, step: int, s: float) -> None:
         """Success during ``step``, a fraction ``s`` into it: the robot leaves the scene."""

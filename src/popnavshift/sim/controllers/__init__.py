@@ -68,6 +68,10 @@ class LoopDriver(Protocol):
       the robot's ``pose`` (x, y, θ), the sensed neighbours ``peds`` (N, 5: x, y,
       vx, vy, radius) and their slots ``ids`` (N,), as float32 values of the
       state navground's own sensing reads at that step.
+    * ``quiet() -> bool`` (optional) — True when a step with nobody sensed would
+      change nothing; then the loop may let navground run such steps without
+      calling :meth:`step` (:mod:`popnavshift.sim.quiet`). A driver without it
+      is called every step.
     """
 
     sensing: bool

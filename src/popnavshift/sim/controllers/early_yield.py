@@ -250,8 +250,14 @@ class EarlyYieldDriver:
         self.machine = YieldMachine(self.params, float(self._behavior.radius),
                                     float(self._behavior.optimal_speed), static_arrays(world))
 
+    def quiet(self) -> bool:
+        """Whether a step with nobody sensed changes nothing (see :class:`..LoopDriver`)."""
+        return cast(YieldMachine, self.machine).phase == GO
+
     def step(self, step: int, pose: np.ndarray, peds: np.ndarray, ids: np.ndarray) -> None:
         m = cast(YieldMachine, self.machine)
+        if m.phase == GO and not len(ids):
+            return  # going, nobody sensed: the machine would stay in GO and change nothing
         before = (m.phase, m.aside_point)
         x, y = pose[:2].tolist()
         gx, gy = self._goal

@@ -138,7 +138,9 @@ class ReactiveDriver:
 
     def start(self, robot: sim.Agent, world: sim.World, dt: float) -> None:
         behavior = cast(core.Behavior, robot.behavior)
-        self._fixed = constants(behavior, self.params, dt, static_arrays(world))
+        # decide()'s arguments, unpacked once: step() runs every control step
+        self._cfg, (self._walls, self._discs) = constants(behavior, self.params, dt,
+                                                          static_arrays(world))
         gx, gy = cast(np.ndarray, behavior.target.position).tolist()
         self._goal = (gx, gy)
         self._controller = robot.controller
@@ -147,7 +149,8 @@ class ReactiveDriver:
     def step(self, step: int, pose: np.ndarray, peds: np.ndarray, ids: np.ndarray) -> None:
         x, y, theta = pose.tolist()
         gx, gy = self._goal
-        v, w, mode = decide(x, y, theta, gx, gy, self._fixed, peds)
+        v, w, mode = reactive_command(x, y, theta, gx, gy, self._cfg, peds, self._walls,
+                                      self._discs)  # decide(), inlined
         self.mode_counts[MODES[mode]] += 1
         if (v, w) != self._last:
             self._controller.follow_manual_cmd(core.Twist2((v, 0.0), w, _RELATIVE))
