@@ -59,3 +59,16 @@ def test_describe_a_study_folder_and_one_table(tmp_path):
     assert proc.returncode == 2 and "did you mean 'runs'" in proc.stderr
     proc = describe(str(tmp_path), "runs")
     assert proc.returncode == 2 and "holds none of the table(s) runs" in proc.stderr
+
+
+def test_profile_columns_carry_meaning_and_unit_and_the_symbols_are_gone():
+    from popnavshift.tables import PARAM_DOCS, PARAMS, Z_COLUMNS
+
+    symbols = {"v", "d", "a", "y", "tau", "L", "g"}
+    old = symbols | {f"z_{s}" for s in symbols}
+    for stage, spec in SPECS.items():
+        assert not old & set(spec.names), stage
+    assert list(PARAM_DOCS) == list(PARAMS) == list(Z_COLUMNS)
+    units = {p: PARAM_DOCS[p][0] for p in PARAMS}
+    assert units["speed_mps"] == "m/s" and units["reaction_delay_s"] == "s"
+    assert units["clearance_m"] == units["detour_distance_m"] == "m"

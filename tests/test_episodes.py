@@ -130,8 +130,9 @@ def _members(population: str, ids: list[str], offset: float) -> pd.DataFrame:
     rows = []
     for m, pid in enumerate(ids):
         rows.append({"population": population, "member": m, "persona_id": pid,
-                     "variant": "baseline", "mapping": "A", "v": 0.7 + offset + 0.01 * m,
-                     "d": 0.5, "a": 1.0, "y": 0.5, "tau": 0.5, "L": 2.0, "g": 0.5})
+                     "variant": "baseline", "mapping": "A", "speed_mps": 0.7 + offset + 0.01 * m,
+                     "clearance_m": 0.5, "avoidance_gain": 1.0, "yield_fraction": 0.5,
+                     "reaction_delay_s": 0.5, "detour_distance_m": 2.0, "gap_acceptance": 0.5})
     return pd.DataFrame(rows)
 
 
@@ -153,7 +154,7 @@ def test_matched_base_and_deadline_put_the_same_persona_in_every_slot():
     deadline = _members("matched_deadline", list(reversed(ids)), 0.5).iloc[::-1]
     a, b = assign_slots(spec, base), assign_slots(spec, deadline)
     assert a.persona_id.tolist() == b.persona_id.tolist()
-    assert (b.v.to_numpy() > a.v.to_numpy()).all()  # same people, shifted profiles
+    assert (b.speed_mps.to_numpy() > a.speed_mps.to_numpy()).all()  # same people, shifted profiles
     homogeneous = _members("homogeneous", ["median"], 0.0)
     assert set(assign_slots(spec, homogeneous).persona_id) == {"median"}
 

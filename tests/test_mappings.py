@@ -11,7 +11,7 @@ from popnavshift.profiles.mappings import (
     speed_cap,
 )
 from popnavshift.responses.probes import PROBE_SET_HASH
-from popnavshift.tables import ACTIONS, BLOCK_ITEMS, PARAM_RANGES, PARAMS, check_table
+from popnavshift.tables import ACTIONS, BLOCK_ITEMS, PARAM_RANGES, PARAMS, Z_COLUMNS, check_table
 
 LEVELS = [0.0, 0.25, 0.5, 0.75, 1.0]
 
@@ -60,9 +60,9 @@ def test_every_parameter_lies_in_its_physical_range(levels, actions, mapping, mo
     for p in PARAMS:
         lo, hi = PARAM_RANGES[p]
         assert prof[p].between(lo, hi).all(), p
-        np.testing.assert_allclose(prof[p], lo + prof[f"z_{p}"] * (hi - lo), atol=1e-12)
+        np.testing.assert_allclose(prof[p], lo + prof[Z_COLUMNS[p]] * (hi - lo), atol=1e-12)
     cap = speed_cap(mobility, "None")
-    assert (prof["v"] <= cap + 1e-12).all()
+    assert (prof["speed_mps"] <= cap + 1e-12).all()
 
 
 def test_mobility_caps_are_ordered_and_motor_needs_cap():
@@ -78,12 +78,12 @@ def test_mapping_a_by_hand():
     prof = build_profiles(responses, personas_for(["p0"]), "A").iloc[0]
     c = 0.34 * 1 + 0.22 * (1 - 0) + 0.22 * 1 + 0.22 * ACTION_SCORE["stop"]
     assert prof["caution"] == pytest.approx(c)
-    assert prof["z_v"] == pytest.approx(min(1, 0.32 + 0.6 * 1 + 0.15 * (1 - c)))
-    assert prof["d"] == pytest.approx(1.20)
-    assert prof["z_a"] == pytest.approx(min(1, 0.6 * c + 0.4))
-    assert prof["z_y"] == pytest.approx(0.75)
-    assert prof["z_tau"] == pytest.approx(0.5)
-    assert prof["g"] == pytest.approx(0.0)
+    assert prof["z_speed"] == pytest.approx(min(1, 0.32 + 0.6 * 1 + 0.15 * (1 - c)))
+    assert prof["clearance_m"] == pytest.approx(1.20)
+    assert prof["z_avoidance_gain"] == pytest.approx(min(1, 0.6 * c + 0.4))
+    assert prof["z_yield_fraction"] == pytest.approx(0.75)
+    assert prof["z_reaction_delay"] == pytest.approx(0.5)
+    assert prof["gap_acceptance"] == pytest.approx(0.0)
 
 
 def test_mappings_differ_but_d_is_direct():
@@ -93,9 +93,9 @@ def test_mappings_differ_but_d_is_direct():
     responses = response_rows(levels, actions, 50)
     pers = personas_for(responses["persona_id"])
     a, d = (build_profiles(responses, pers, m) for m in "AD")
-    assert not np.allclose(a["v"], d["v"])
-    np.testing.assert_allclose(d["z_g"], responses["q_gap"])
-    np.testing.assert_allclose(d["z_a"], 1 - responses["q_trust"])
+    assert not np.allclose(a["speed_mps"], d["speed_mps"])
+    np.testing.assert_allclose(d["z_gap_acceptance"], responses["q_gap"])
+    np.testing.assert_allclose(d["z_avoidance_gain"], 1 - responses["q_trust"])
 
 
 def test_urgency_raises_speed_and_lowers_yielding_under_mapping_a():
@@ -105,8 +105,8 @@ def test_urgency_raises_speed_and_lowers_yielding_under_mapping_a():
         [[lo[k] for k in BLOCK_ITEMS], [hi[k] for k in BLOCK_ITEMS]], [["slow"] * 8] * 2, 2
     )
     prof = build_profiles(responses, personas_for(responses["persona_id"]), "A")
-    assert prof["v"].iloc[1] > prof["v"].iloc[0]
-    assert prof["y"].iloc[1] < prof["y"].iloc[0]
+    assert prof["speed_mps"].iloc[1] > prof["speed_mps"].iloc[0]
+    assert prof["yield_fraction"].iloc[1] < prof["yield_fraction"].iloc[0]
 
 
 def test_unknown_mapping_and_unknown_persona_are_clear_errors():

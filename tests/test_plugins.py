@@ -103,8 +103,9 @@ def members(n: int = 40) -> pd.DataFrame:
     rng = np.random.default_rng(0)
     return pd.DataFrame({"population": "mixed", "member": range(n), "variant": "baseline",
                          "mapping": "A", "persona_id": [f"p{i:03d}" for i in range(n)],
-                         "v": rng.uniform(0.8, 1.4, n), "d": 0.6, "a": 1.2, "y": 0.5,
-                         "tau": 0.5, "L": 2.0, "g": 0.5})
+                         "speed_mps": rng.uniform(0.8, 1.4, n), "clearance_m": 0.6,
+                         "avoidance_gain": 1.2, "yield_fraction": 0.5, "reaction_delay_s": 0.5,
+                         "detour_distance_m": 2.0, "gap_acceptance": 0.5})
 
 
 def slots(episode: str = EPISODE) -> tuple:

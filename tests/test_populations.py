@@ -90,4 +90,4 @@ def test_other_mappings_share_membership(pipeline):
     pd.testing.assert_frame_equal(
         a[["population", "member", "persona_id"]], d[["population", "member", "persona_id"]]
     )
-    assert (d.mapping == "D").all() and not np.allclose(a.v, d.v)
+    assert (d.mapping == "D").all() and not np.allclose(a.speed_mps, d.speed_mps)

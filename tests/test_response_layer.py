@@ -39,8 +39,9 @@ class Straight:
 
 
 def profile(n: int = 1, **kw) -> pd.DataFrame:
-    row = {"persona_id": "p", "v": 1.2, "d": 0.6, "a": 1.4, "y": 0.5, "tau": 0.5, "L": 2.5,
-           "g": 0.5}
+    row = {"persona_id": "p", "speed_mps": 1.2, "clearance_m": 0.6, "avoidance_gain": 1.4,
+           "yield_fraction": 0.5, "reaction_delay_s": 0.5, "detour_distance_m": 2.5,
+           "gap_acceptance": 0.5}
     row.update(kw)
     return pd.DataFrame([row] * n)
 
@@ -71,7 +72,7 @@ def test_backends_are_registered_by_name():
 @pytest.mark.parametrize("v", [0.6, 1.3, 1.8])
 def test_a_lone_pedestrian_walks_at_its_preferred_speed(backend, v):
     spec = lone(get_episode("sidewalk-w1.8-d0.06-s0.6-v1"), (1.0, 0.3), +1)
-    result = simulate(spec, profile(v=v), None, backend, record=True)
+    result = simulate(spec, profile(speed_mps=v), None, backend, record=True)
     assert speeds(result) == pytest.approx(v, abs=1e-3)
     assert result.pedestrians.travel_time[0] == pytest.approx(23.0 / v, abs=1e-3)
     assert result.pedestrians.detour[0] == pytest.approx(0.0, abs=1e-3)
@@ -82,8 +83,9 @@ def test_high_yielding_slows_for_a_robot_on_a_collision_course_low_yielding_does
     spec = get_episode("head_on-w2.4-d0.06-s0.6-v1")
     forward = {}
     for y in (0.0, 1.0):
-        result = simulate(spec, profile(y=y, tau=0.15, L=1.5, g=0.0), Straight(), backend,
-                          record=True)
+        slow = profile(yield_fraction=y, reaction_delay_s=0.15, detour_distance_m=1.5,
+                       gap_acceptance=0.0)
+        result = simulate(spec, slow, Straight(), backend, record=True)
         tr = result.trajectory
         ped, robot = tr["ped_pose"][:, 0, :2], tr["robot_pose"][:, :2]
         step_v = np.diff(ped, axis=0) / 0.1 @ np.array(spec.ped_directions[0])
@@ -101,7 +103,8 @@ def test_reaction_starts_after_the_delay_once_the_robot_is_in_range():
     spec = get_episode("head_on-w3.0-d0.06-s0.6-v2")
     first = {}
     for tau in (0.15, 1.2):
-        tr = simulate(spec, profile(tau=tau), Straight(), "orca", record=True).trajectory
+        tr = simulate(spec, profile(reaction_delay_s=tau), Straight(), "orca",
+                      record=True).trajectory
         dist = np.linalg.norm(tr["ped_pose"][:, 0, :2] - tr["robot_pose"][:, :2], axis=1)
         in_range = int(np.argmax(dist <= SENSE_RANGE))
         reacting = int(np.argmax(tr["ped_flags"][:, 0] & FLAG_REACTING))
@@ -112,10 +115,14 @@ def test_reaction_starts_after_the_delay_once_the_robot_is_in_range():
 
 def test_without_a_robot_only_the_preferred_speed_matters():
     spec = get_episode("sidewalk-w2.4-d0.2-s1.0-v1")
-    calm = simulate(spec, profile(spec.n_peds, y=0.0, d=0.3, a=0.6, L=1.0, g=1.0), None)
-    wary = simulate(spec, profile(spec.n_peds, y=1.0, d=1.2, a=2.2, L=4.0, g=0.0), None)
+    calm = simulate(spec, profile(spec.n_peds, yield_fraction=0.0, clearance_m=0.3,
+                                  avoidance_gain=0.6, detour_distance_m=1.0,
+                                  gap_acceptance=1.0), None)
+    wary = simulate(spec, profile(spec.n_peds, yield_fraction=1.0, clearance_m=1.2,
+                                  avoidance_gain=2.2, detour_distance_m=4.0,
+                                  gap_acceptance=0.0), None)
     pd.testing.assert_series_equal(calm.pedestrians.travel_time, wary.pedestrians.travel_time)
-    faster = simulate(spec, profile(spec.n_peds, v=1.6), None)
+    faster = simulate(spec, profile(spec.n_peds, speed_mps=1.6), None)
     assert faster.pedestrians.travel_time.mean() < calm.pedestrians.travel_time.mean()
 
 

@@ -57,9 +57,10 @@ def members(population: str, n: int, v0: float) -> pd.DataFrame:
     rng = np.random.default_rng(len(population))
     return pd.DataFrame({
         "population": population, "member": range(n), "persona_id": [f"q{i:02d}" for i in range(n)],
-        "variant": "baseline", "mapping": "A", "v": v0 + 0.6 * rng.random(n),
-        "d": 0.3 + 0.9 * rng.random(n), "a": 0.6 + 1.6 * rng.random(n), "y": rng.random(n),
-        "tau": 0.15 + rng.random(n), "L": 1.0 + 3.0 * rng.random(n), "g": rng.random(n),
+        "variant": "baseline", "mapping": "A", "speed_mps": v0 + 0.6 * rng.random(n),
+        "clearance_m": 0.3 + 0.9 * rng.random(n), "avoidance_gain": 0.6 + 1.6 * rng.random(n),
+        "yield_fraction": rng.random(n), "reaction_delay_s": 0.15 + rng.random(n),
+        "detour_distance_m": 1.0 + 3.0 * rng.random(n), "gap_acceptance": rng.random(n),
     })
 
 
@@ -128,8 +129,9 @@ def test_a_robot_driven_into_a_pedestrian_is_a_pedestrian_collision():
     narrow = ((-6.0, 0.5, 30.0, 0.5), (-6.0, -0.5, 30.0, -0.5))
     spec = dataclasses.replace(base, walls=narrow, ped_starts=((10.0, 0.0),),
                                ped_goals=((-2.0, 0.0),), ped_vias=((-2.0, 0.0),))
-    slots = pd.DataFrame([{"persona_id": "p", "v": 0.6, "d": 0.6, "a": 1.0, "y": 1.0,
-                           "tau": 0.15, "L": 4.0, "g": 0.0}])
+    slots = pd.DataFrame([{"persona_id": "p", "speed_mps": 0.6, "clearance_m": 0.6,
+                           "avoidance_gain": 1.0, "yield_fraction": 1.0, "reaction_delay_s": 0.15,
+                           "detour_distance_m": 4.0, "gap_acceptance": 0.0}])
     result = simulate(spec, slots, Straight(), record=True)
     run = result.run
     assert run["outcome"] == "pedestrian_collision"
@@ -154,7 +156,7 @@ def test_rows_have_one_pedestrian_per_slot_with_its_profile():
     peds = result.pedestrians
     assert len(peds) == spec.n_peds and peds.slot.tolist() == list(range(spec.n_peds))
     assert peds.persona_id.tolist() == slots.persona_id.tolist()
-    np.testing.assert_array_equal(peds.v.to_numpy(), slots.v.to_numpy())
+    np.testing.assert_array_equal(peds.speed_mps.to_numpy(), slots.speed_mps.to_numpy())
     arrived = peds[peds.arrived]
     assert (arrived.walk_distance >= arrived.walk_distance - arrived.detour).all()
     assert (arrived.detour > -1e-6).all() and (arrived.travel_time > 0).all()
@@ -164,22 +166,23 @@ def test_rows_have_one_pedestrian_per_slot_with_its_profile():
 
 def test_bad_inputs_raise_errors_that_name_the_problem():
     spec = get_episode("head_on-w2.4-d0.06-s1.0-v1")
-    good = pd.DataFrame([{"persona_id": "p", "v": 1.0, "d": 0.5, "a": 1.0, "y": 0.5,
-                          "tau": 0.5, "L": 2.0, "g": 0.5}])
+    good = pd.DataFrame([{"persona_id": "p", "speed_mps": 1.0, "clearance_m": 0.5,
+                          "avoidance_gain": 1.0, "yield_fraction": 0.5, "reaction_delay_s": 0.5,
+                          "detour_distance_m": 2.0, "gap_acceptance": 0.5}])
     with pytest.raises(UnknownNameError, match="backend"):
         simulate(spec, good, None, "orcaa")
     with pytest.raises(UnknownNameError, match="controller"):
         simulate(spec, good, "no_such_controller")
     with pytest.raises(ConfigError, match="controller"):
         simulate(spec, good, 42)
-    with pytest.raises(InputError, match="tau"):
-        simulate(spec, good.assign(tau=3.0), None)
-    with pytest.raises(InputError, match="v = nan at slot 0"):
-        simulate(spec, good.assign(v=np.nan), None)
+    with pytest.raises(InputError, match="reaction_delay_s"):
+        simulate(spec, good.assign(reaction_delay_s=3.0), None)
+    with pytest.raises(InputError, match="speed_mps = nan at slot 0"):
+        simulate(spec, good.assign(speed_mps=np.nan), None)
     with pytest.raises(InputError, match="expected 1 rows"):
         simulate(spec, pd.concat([good, good]), None)
     with pytest.raises(InputError, match="missing column"):
-        simulate(spec, good.drop(columns="g"), None)
+        simulate(spec, good.drop(columns="gap_acceptance"), None)
 
 
 SCRIPT = """

@@ -14,27 +14,48 @@ import pandas as pd
 
 from .errors import InputError
 
-PARAMS: tuple[str, ...] = ("v", "d", "a", "y", "tau", "L", "g")
-"""The seven motion parameters θ = (v, d, a, y, τ, L, g), in this order."""
+PARAMS: tuple[str, ...] = (
+    "speed_mps",
+    "clearance_m",
+    "avoidance_gain",
+    "yield_fraction",
+    "reaction_delay_s",
+    "detour_distance_m",
+    "gap_acceptance",
+)
+"""The seven motion parameters θ = (v, d, a, y, τ, L, g) as column names, in this order."""
+#: the normalised score column of each parameter (θ = low + z (high − low))
+Z_COLUMNS: dict[str, str] = {
+    "speed_mps": "z_speed",
+    "clearance_m": "z_clearance",
+    "avoidance_gain": "z_avoidance_gain",
+    "yield_fraction": "z_yield_fraction",
+    "reaction_delay_s": "z_reaction_delay",
+    "detour_distance_m": "z_detour_distance",
+    "gap_acceptance": "z_gap_acceptance",
+}
 
 PARAM_RANGES: dict[str, tuple[float, float]] = {
-    "v": (0.60, 1.80),  # preferred speed [m/s]
-    "d": (0.30, 1.20),  # robot clearance [m]
-    "a": (0.60, 2.20),  # avoidance strength [-]
-    "y": (0.0, 1.0),  # yielding propensity [-]
-    "tau": (0.15, 1.20),  # reaction delay [s]
-    "L": (1.0, 4.0),  # detour threshold [m]
-    "g": (0.0, 1.0),  # gap acceptance [-]
+    "speed_mps": (0.60, 1.80),  # preferred speed [m/s]
+    "clearance_m": (0.30, 1.20),  # robot clearance [m]
+    "avoidance_gain": (0.60, 2.20),  # avoidance strength [-]
+    "yield_fraction": (0.0, 1.0),  # yielding propensity [-]
+    "reaction_delay_s": (0.15, 1.20),  # reaction delay [s]
+    "detour_distance_m": (1.0, 4.0),  # detour threshold [m]
+    "gap_acceptance": (0.0, 1.0),  # gap acceptance [-]
 }
 #: unit and meaning of each motion parameter (docs/method.md, response layer)
 PARAM_DOCS: dict[str, tuple[str, str]] = {
-    "v": ("m/s", "preferred walking speed"),
-    "d": ("m", "clearance wanted from the robot, added to both radii in the conflict test"),
-    "a": ("1", "avoidance strength: a detour's lateral offset is a × effective clearance"),
-    "y": ("1", "yielding propensity: fraction of the preferred speed given up in a conflict"),
-    "tau": ("s", "reaction delay after the robot comes within 6 m"),
-    "L": ("m", "robot distance at which yielding is complete and detours start"),
-    "g": ("1", "gap acceptance: shrinks the effective clearance, d (1 − 0.35 g)"),
+    "speed_mps": ("m/s", "v: preferred walking speed"),
+    "clearance_m": ("m", "d: clearance wanted from the robot, added to both radii in the "
+                    "conflict test"),
+    "avoidance_gain": ("1", "a: avoidance strength, a detour's lateral offset per m of "
+                       "effective clearance"),
+    "yield_fraction": ("1", "y: yielding propensity, fraction of the preferred speed given "
+                       "up in a conflict"),
+    "reaction_delay_s": ("s", "τ: reaction delay after the robot comes within 6 m"),
+    "detour_distance_m": ("m", "L: robot distance at which yielding is complete and detours start"),
+    "gap_acceptance": ("1", "g: gap acceptance, shrinks the effective clearance to d (1 − 0.35 g)"),
 }
 
 #: Ordered five-level response block (SPEC §3), encoded 0, .25, .5, .75, 1.
@@ -175,7 +196,7 @@ def _param_columns(prefix: str = "", nullable: bool = False, **kw: str) -> tuple
 
 def _z_columns() -> tuple[Column, ...]:
     return tuple(
-        Column(f"z_{p}", "float", unit="1",
+        Column(Z_COLUMNS[p], "float", unit="1",
                doc=f"normalised score of {p} in [0, 1]: {p} = low + z (high − low), "
                f"range {PARAM_RANGES[p][0]:g}–{PARAM_RANGES[p][1]:g} {PARAM_DOCS[p][0]}")
         for p in PARAMS

@@ -21,13 +21,13 @@ from ..tables import PARAM_RANGES, PARAMS  # noqa: E402
 from .build import POPULATION_GROUPS, POPULATIONS, population_sizes  # noqa: E402
 
 PARAM_LABELS = {
-    "v": "speed v",
-    "d": "clearance d",
-    "a": "avoidance a",
-    "y": "yielding y",
-    "tau": "reaction τ",
-    "L": "detour L",
-    "g": "gap accept. g",
+    "speed_mps": "speed v",
+    "clearance_m": "clearance d",
+    "avoidance_gain": "avoidance a",
+    "yield_fraction": "yielding y",
+    "reaction_delay_s": "reaction τ",
+    "detour_distance_m": "detour L",
+    "gap_acceptance": "gap accept. g",
 }
 
 

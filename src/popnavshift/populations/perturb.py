@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from ..hashing import stable_seed
-from ..tables import ACTION_COLUMNS, PARAMS, Q_COLUMNS, check_table
+from ..tables import ACTION_COLUMNS, PARAMS, Q_COLUMNS, Z_COLUMNS, check_table
 
 #: Response blocks for the single-block runs: item columns (and whether actions vary).
 BLOCKS: dict[str, tuple[tuple[str, ...], bool]] = {
@@ -66,7 +66,7 @@ def reassign_profiles(profiles: pd.DataFrame, seed: int) -> pd.DataFrame:
     order = np.argsort(ids, kind="stable")  # permutation defined on sorted ids
     rng = np.random.default_rng(stable_seed("reassign", seed))
     perm = rng.permutation(len(base))
-    cols = [*PARAMS, *(f"z_{p}" for p in PARAMS), "caution"]
+    cols = [*PARAMS, *(Z_COLUMNS[p] for p in PARAMS), "caution"]
     values = out[cols].to_numpy(copy=True)
     src = base[order][perm]
     values[base[order]] = out[cols].to_numpy()[src]

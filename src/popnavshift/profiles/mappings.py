@@ -26,6 +26,9 @@ combination weights its inputs equally (intercepts as in A where A has one).
 Mapping D (direct): one response per control, no mixtures: z_v = q_u, z_d = q_c,
 z_a = 1 − q_t, z_y = q_y, z_tau = q_t, z_L = q_d, z_g = q_g; its caution column
 is A's C (D has none of its own).
+
+The symbols are the paper's; the columns are ``tables.PARAMS`` (v = ``speed_mps``, …)
+and ``tables.Z_COLUMNS`` (z_v = ``z_speed``, …), see docs/method.md §4.
 """
 
 from __future__ import annotations
@@ -35,7 +38,15 @@ import pandas as pd
 
 from ..errors import InputError
 from ..registry import Registry
-from ..tables import ACTION_COLUMNS, ACTIONS, BLOCK_ITEMS, PARAM_RANGES, PARAMS, check_table
+from ..tables import (
+    ACTION_COLUMNS,
+    ACTIONS,
+    BLOCK_ITEMS,
+    PARAM_RANGES,
+    PARAMS,
+    Z_COLUMNS,
+    check_table,
+)
 
 #: Ordered caution score of each action (pass is the least, stop the most accommodating).
 ACTION_SCORE: dict[str, float] = {
@@ -79,22 +90,22 @@ def _roles(q: Q, c: np.ndarray, equal: bool = False) -> dict[str, np.ndarray]:
     u, t = q["urgency"], q["trust"]
     if equal:
         return {
-            "v": 0.32 + 0.5 * (0.6 * u + 0.6 * (1 - c)),
-            "d": q["clearance"],
-            "a": 0.5 * c + 0.5 * (1 - t),
-            "y": 0.5 * q["yielding"] + 0.5 * (1 - u),
-            "tau": 0.5 * u + 0.5 * t,
-            "L": 0.5 * q["detour"] + 0.5 * c,
-            "g": q["gap"],
+            "speed_mps": 0.32 + 0.5 * (0.6 * u + 0.6 * (1 - c)),
+            "clearance_m": q["clearance"],
+            "avoidance_gain": 0.5 * c + 0.5 * (1 - t),
+            "yield_fraction": 0.5 * q["yielding"] + 0.5 * (1 - u),
+            "reaction_delay_s": 0.5 * u + 0.5 * t,
+            "detour_distance_m": 0.5 * q["detour"] + 0.5 * c,
+            "gap_acceptance": q["gap"],
         }
     return {
-        "v": 0.32 + 0.60 * u + 0.15 * (1 - c),
-        "d": q["clearance"],
-        "a": 0.60 * c + 0.40 * (1 - t),
-        "y": 0.75 * q["yielding"] + 0.25 * (1 - u),
-        "tau": 0.50 * u + 0.50 * t,
-        "L": 0.60 * q["detour"] + 0.40 * c,
-        "g": q["gap"],
+        "speed_mps": 0.32 + 0.60 * u + 0.15 * (1 - c),
+        "clearance_m": q["clearance"],
+        "avoidance_gain": 0.60 * c + 0.40 * (1 - t),
+        "yield_fraction": 0.75 * q["yielding"] + 0.25 * (1 - u),
+        "reaction_delay_s": 0.50 * u + 0.50 * t,
+        "detour_distance_m": 0.60 * q["detour"] + 0.40 * c,
+        "gap_acceptance": q["gap"],
     }
 
 
@@ -119,13 +130,13 @@ def mapping_c(q: Q) -> tuple[dict[str, np.ndarray], np.ndarray]:
 @MAPPINGS.register("D")
 def mapping_d(q: Q) -> tuple[dict[str, np.ndarray], np.ndarray]:
     z = {
-        "v": q["urgency"],
-        "d": q["clearance"],
-        "a": 1 - q["trust"],
-        "y": q["yielding"],
-        "tau": q["trust"],
-        "L": q["detour"],
-        "g": q["gap"],
+        "speed_mps": q["urgency"],
+        "clearance_m": q["clearance"],
+        "avoidance_gain": 1 - q["trust"],
+        "yield_fraction": q["yielding"],
+        "reaction_delay_s": q["trust"],
+        "detour_distance_m": q["detour"],
+        "gap_acceptance": q["gap"],
     }
     return z, caution_a(q)
 
@@ -140,7 +151,7 @@ def speed_cap(health_mobility: object, accessibility_needs: object) -> float:
 
 def apply_mobility_caps(v: np.ndarray, caps: np.ndarray) -> np.ndarray:
     """Preferred speed after the ordered mobility caps (never below the range's low end)."""
-    lo = PARAM_RANGES["v"][0]
+    lo = PARAM_RANGES["speed_mps"][0]
     return np.maximum(np.minimum(v, caps), lo)
 
 
@@ -175,11 +186,11 @@ def build_profiles(
         lo, hi = PARAM_RANGES[p]
         zp = np.clip(z[p], 0.0, 1.0)
         theta = np.clip(lo + zp * (hi - lo), lo, hi)  # exact bounds despite rounding
-        if p == "v":
+        if p == "speed_mps":
             theta = apply_mobility_caps(theta, caps)
             zp = (theta - lo) / (hi - lo)
         out[p] = theta
-        out[f"z_{p}"] = zp
+        out[Z_COLUMNS[p]] = zp
     out["caution"] = np.clip(c, 0.0, 1.0)
     df = pd.DataFrame(out)
     return check_table(df, "profiles")

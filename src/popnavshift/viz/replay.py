@@ -113,7 +113,7 @@ def render_svg(
                     fills=[STATE_COLOURS[s] for s in states[steps, k]],
                 )
             )
-        else:  # a profile value in [0, 1] per pedestrian (e.g. z_v)
+        else:  # a profile value in [0, 1] per pedestrian (e.g. z_speed)
             colour = _hex(matplotlib.colormaps["viridis"](float(profiles[k])))
             parts.append(_agent(peds[steps, k], X, Y, traj["ped_radius"], dur, fill=colour))
     if robot is not None:
