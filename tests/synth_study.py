@@ -53,7 +53,8 @@ def synthetic_study(populations: dict[str, Effect], *, n_cells: int = 12, varian
                         delay = (mu[ci, j - 1] + e + rng.normal(0, noise, n_peds)) if robot \
                             else np.zeros(n_peds)
                         rt = 25.0 + tmu[ci, j - 1] + e + rng.normal(0, noise) if robot else 0.0
-                        runs.append({"part": "main", "episode": ep, "scene": cell[0],
+                        runs.append({"part": "main", "episode": ep, "seed_set": k,
+                                     "scene": cell[0],
                                      "width": cell[1], "density": cell[2],
                                      "robot_speed": cell[3], "variant": v, "population": pop,
                                      "controller": ctrl, "backend": "orca", "mapping": "A",
@@ -63,7 +64,8 @@ def synthetic_study(populations: dict[str, Effect], *, n_cells: int = 12, varian
                                      "error": None})
                         for s in range(n_peds):
                             t = base_t[s] + delay[s]
-                            peds.append({"part": "main", "episode": ep, "population": pop,
+                            peds.append({"part": "main", "episode": ep, "seed_set": k,
+                                         "population": pop,
                                          "controller": ctrl, "backend": "orca", "mapping": "A",
                                          "slot": s, "persona_id": f"p{s}", "arrived": True,
                                          "travel_time": t, "walk_distance": 1.3 * t})

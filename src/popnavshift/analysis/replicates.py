@@ -23,7 +23,6 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..episodes.specs import seed_set_of
 from .delay import cell_metrics, paired_delays
 from .evidence import test_comparisons
 from .reversals import comparisons
@@ -37,16 +36,14 @@ ALPHA_ONE_SIDED = 0.05
 MIN_EFFECT = 0.05
 
 
-def seed_sets(runs: pd.DataFrame, study_seed: int) -> pd.Series:
-    """The seed set of every run (aligned with ``runs``)."""
-    ids = runs["episode"].astype(str)
-    uniq = {e: seed_set_of(e, study_seed) for e in ids.unique()}
-    return ids.map(uniq).astype(np.int64)
+def seed_sets(table: pd.DataFrame) -> pd.Series:
+    """The seed set of every row of a runs or pedestrians table (its ``seed_set`` column)."""
+    return table["seed_set"].astype(np.int64)
 
 
 def _ordered_sets(runs: pd.DataFrame, study_seed: int) -> list[int]:
     """Seed sets, the study's own first, then ascending."""
-    have = sorted(set(seed_sets(runs, study_seed)))
+    have = sorted(set(seed_sets(runs)))
     return sorted(have, key=lambda s: (s != study_seed, s))
 
 
@@ -61,8 +58,8 @@ def replicate_curve(runs: pd.DataFrame, pedestrians: pd.DataFrame,
     Resample k uses ``numpy.random.default_rng([seed, k])``. ``full``, when given, is
     the headline already computed on all S seed sets (reused for k = S)."""
     order = _ordered_sets(runs, study_seed)
-    run_sets = seed_sets(runs, study_seed)
-    ped_sets = seed_sets(pedestrians, study_seed)
+    run_sets = seed_sets(runs)
+    ped_sets = seed_sets(pedestrians)
     frames = []
     for k in range(1, len(order) + 1):
         if k == len(order) and full is not None:
@@ -87,8 +84,8 @@ def replicability(runs: pd.DataFrame, pedestrians: pd.DataFrame,
     of one seed set and P(the reversal recurs in the same direction in another seed
     set | it reversed in one and is comparable in the other), over ordered pairs of
     distinct seed sets. Needs at least 2 seed sets (else empty)."""
-    sets = seed_sets(runs, study_seed)
-    psets = seed_sets(pedestrians, study_seed)
+    sets = seed_sets(runs)
+    psets = seed_sets(pedestrians)
     order = _ordered_sets(runs, study_seed)
     if len(order) < 2:
         return pd.DataFrame()

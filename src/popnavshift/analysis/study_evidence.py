@@ -72,7 +72,7 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
         one = {label: (obs_pairs, nulls)}
         tested = test_comparisons(r, p, one, obs_pops, rng=np.random.default_rng([rng_seed, i]),
                                   n_boot=n_boot, level=level)
-        n_sets = int(seed_sets(r, seed).nunique())
+        n_sets = int(seed_sets(r).nunique())
         head = tested.headline.assign(null="swap" if label == "matched" else "sized",
                                       seed_sets=n_sets, variants_per_cell=3 * n_sets)
         burden = pd.concat([burden_beyond_time(head, tested.null_rates, tested.boot_excess,
@@ -106,7 +106,7 @@ def _replicates(runs: pd.DataFrame, peds: pd.DataFrame, design: dict, observed: 
                 full: pd.DataFrame, *, seed: int, rng_seed: int, level: float,
                 missing: dict[str, str]) -> dict[str, pd.DataFrame]:
     """The matched comparison against its seed sets: rates curve and replicability."""
-    if int(seed_sets(runs, seed).nunique()) < 2:
+    if int(seed_sets(runs).nunique()) < 2:
         missing["curve"] = ("the matched pair was run on one episode seed set: add `seeds` to "
                             "its part to see rates against replicates")
         return {}

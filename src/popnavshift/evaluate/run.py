@@ -271,7 +271,7 @@ def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0,
     from ..viz.replay import render_svg
     from .card import card_tables, write_card
 
-    n_sets = int(seed_sets(ev.runs, ev.study.seed).nunique())
+    n_sets = int(seed_sets(ev.runs).nunique())
     card = card_tables(ev.runs, ev.pedestrians, ev.controller, ev.baselines,
                        rng=np.random.default_rng(seed), n_boot=n_boot, seed_sets=n_sets,
                        safety_threshold=safety_threshold)
