@@ -239,7 +239,7 @@ def test_a_run_that_cannot_be_resimulated_is_reported_not_fatal(quick, tmp_path,
     study = read_study_folder(quick)
     runs, peds, _ = main_grid(study)
     a = analyse(runs, peds, n_boot=10)
-    reps = replays.write_replays(study, a, runs, peds, tmp_path, 1)
+    reps = replays.write_replays(study, a, runs, tmp_path, 1)
     assert reps is not None and not reps["reproduced"].any()
     assert reps["differences"].str.startswith("could not re-simulate: controller raised").all()
     assert list(tmp_path.iterdir()) == []

@@ -59,7 +59,7 @@ def build_report(folder: Path, *, rng_seed: int = 0, n_boot: int = 1000, replays
     robust, robust_missing = robustness_tables(study, rng_seed=rng_seed, n_boot=n_boot)
     analysis.tables.update(robust)
     analysis.missing.update({f"robust_{k}": v for k, v in robust_missing.items()})
-    reps = write_replays(study, analysis, runs, peds, out / "replays", replays)
+    reps = write_replays(study, analysis, runs, out / "replays", replays)
     if reps is not None and not reps.empty:
         analysis.tables["replays"] = reps
     elif replays <= 0:

@@ -18,7 +18,7 @@ import pandas as pd
 
 from ..analysis.delay import episode_cells
 from ..analysis.study import Analysis
-from ..engine.folder import StudyFolder, study_seed
+from ..engine.folder import StudyFolder, stored_pedestrians, study_seed
 from ..errors import PopNavShiftError
 from ..tables import NO_ROBOT, RUN_KEY
 
@@ -131,7 +131,7 @@ def _row(df: pd.DataFrame, key: dict[str, str]) -> pd.DataFrame:
     return df[m]
 
 
-def write_replays(study: StudyFolder, a: Analysis, runs: pd.DataFrame, peds: pd.DataFrame,
+def write_replays(study: StudyFolder, a: Analysis, runs: pd.DataFrame,
                   out: Path, n: int) -> pd.DataFrame | None:
     """Re-simulate the illustrative cases, write ``out/<name>.html`` (+ .svg) and check each run.
 
@@ -164,7 +164,7 @@ def write_replays(study: StudyFolder, a: Analysis, runs: pd.DataFrame, peds: pd.
                              "file": "", "reproduced": False,
                              "differences": f"could not re-simulate: {exc}"})
                 continue
-            diff = run_differences(stored.iloc[0], _row(peds, key), result)
+            diff = run_differences(stored.iloc[0], stored_pedestrians(study, key), result)
             name = slug(f"{case.kind}{case.index}-{key['controller']}-{key['population']}")
             metrics = {"illustrates": case.text,
                        **{k: stored.iloc[0][k] for k in REPLAY_METRICS if k in stored},
