@@ -53,6 +53,8 @@ def test_the_report_opens_with_the_headline_box(study):
     head = page[box: page.index("</div>", box)]
     assert "swap permutations" in head and "size-matched subsets of mixed" in head
     assert "excess" in head and "p = " in head and "Paper's rule: raw rate" in head
+    # each raw-rule line carries its own verdict, beside the significant rule's
+    assert head.count("Paper's rule: raw rate") == head.count('→ <span class="verdict') / 2 > 0
     for name in ("evidence_headline", "evidence_null_rates", "evidence_ranks",
                  "evidence_power", "evidence_curve", "evidence_crossovers"):
         assert (study / "report" / "tables" / f"{name}.csv").exists(), name

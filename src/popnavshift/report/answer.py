@@ -71,15 +71,17 @@ def headline_lines(head: pd.DataFrame) -> list[dict[str, Any]]:
                         f"{pct(raw['null_mean'])}, excess {_pp(raw['excess'])} "
                         f"[{_pp(raw['ci_low'])}, {_pp(raw['ci_high'])}], "
                         f"p = {_p(raw['p_value'])}")
+            raw_verdict = {"raw_verdict": _verdict(raw),
+                           "raw_good": str(raw.get("verdict")) == "beats the null"}
             if sig is None or not sig["n_null"] or not np.isfinite(sig["observed"]):
-                lines.append({"comparison": comp, "metric": metric, "good": False,
+                lines.append({"comparison": comp, "metric": metric, "good": False, **raw_verdict,
                               "verdict": "undecided: no ordering is significant under both "
                               "populations at this design (add seed sets)",
                               "text": f"{LABELS[metric]}: significant rate undefined",
                               "raw": raw_text})
                 continue
             lines.append({
-                "comparison": comp, "metric": metric, "verdict": _verdict(sig),
+                "comparison": comp, "metric": metric, "verdict": _verdict(sig), **raw_verdict,
                 "good": str(sig.get("verdict")) == "beats the null",
                 "text": (f"{LABELS[metric]}: significant reversals {pct(sig['observed'])} "
                          f"({sig['reversals']}/{sig['comparable']}) against "
