@@ -80,7 +80,7 @@ def replicability(runs: pd.DataFrame, pedestrians: pd.DataFrame,
                   designs: dict[str, tuple[list, list]], *, study_seed: int,
                   metrics: Sequence[str] = ("robot_time", "mean_delay", "worst_decile")
                   ) -> pd.DataFrame:
-    """Per (comparison, kind ∈ {observed, null}, metric): the marginal raw reversal rate
+    """Per (comparison, kind ∈ {observed, null design}, metric): the marginal raw reversal rate
     of one seed set and P(the reversal recurs in the same direction in another seed
     set | it reversed in one and is comparable in the other), over ordered pairs of
     distinct seed sets. Needs at least 2 seed sets (else empty)."""
@@ -94,7 +94,7 @@ def replicability(runs: pd.DataFrame, pedestrians: pd.DataFrame,
         r = runs[(sets == s).to_numpy()]
         cells = cell_metrics(r, paired_delays(pedestrians[(psets == s).to_numpy()]))
         for label, (obs, nulls) in designs.items():
-            for kind, pairs in (("observed", obs), ("null", [p for n in nulls for p in n])):
+            for kind, pairs in (("observed", obs), ("null design", [p for n in nulls for p in n])):
                 c = comparisons(cells, pairs, metrics=metrics)
                 per_set.append(c.assign(seed_set=s, comparison=label, kind=kind))
     allc = pd.concat(per_set, ignore_index=True)

@@ -4,8 +4,10 @@
 of the paper on point estimates. Here each claim that is a comparison of grid
 statistics is re-checked on the paired episode bootstrap (:mod:`.resample`): its
 statistic (a difference that is positive when the claim holds, or a ratio that
-must lie in a band) gets an interval at ``level``, and the claim **survives** when
-the whole interval agrees with it. The reversal-rate claims ("burden reverses more
+must lie in a band) gets an interval at ``level`` — centred on the estimate, its width
+from the resamples (:func:`.nulls.centred_interval`: a resample that repeats an episode
+shifts tail statistics, so percentile intervals can miss the estimate) — and the claim
+**survives** when the whole interval agrees with it. The reversal-rate claims ("burden reverses more
 than robot time") are checked against their nulls in :mod:`.nulls`
 (:func:`burden_beyond_time`), because every null reproduces that ordering too.
 """
@@ -21,6 +23,7 @@ import pandas as pd
 
 from ..tables import NO_ROBOT
 from .delay import CELL_KEY, cell_metrics, episode_cells, paired_delays
+from .nulls import centred_interval
 from .resample import build_design, episode_weights, resampled_metrics
 from .reversals import MATCHED
 from .significance import LEVEL
@@ -136,7 +139,7 @@ def surviving_findings(runs: pd.DataFrame, pedestrians: pd.DataFrame, *,
         checks.append((f"Worst-decile delay is about 4× the mean delay ({ctrl})",
                        "worst decile / mean delay",
                        partial(_tail_ratio_of, cells, ctrl), TAIL_BAND))
-    a = (1 - level) / 2
+    n_episodes = float(design.episodes.groupby("cell").size().median())
     rows = []
     for statement, statistic, f, (lo, hi) in checks:
         with warnings.catch_warnings():  # empty selections give NaN: a finding not decided
@@ -144,7 +147,7 @@ def surviving_findings(runs: pd.DataFrame, pedestrians: pd.DataFrame, *,
             est = float(f(point))
             b = np.asarray(f(boot), dtype=float)
         b = b[np.isfinite(b)]
-        ci = np.quantile(b, [a, 1 - a]) if b.size else (np.nan, np.nan)
+        ci = centred_interval(est, b, level, n_episodes)
         rows.append({"statement": statement, "statistic": statistic, "estimate": est,
                      "ci_low": float(ci[0]), "ci_high": float(ci[1]),
                      "holds": bool(lo < est < hi),
