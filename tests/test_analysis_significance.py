@@ -59,6 +59,18 @@ def test_unit_weights_reproduce_the_cell_metrics():
         np.testing.assert_allclose(got[m][0], cells[m].to_numpy(float), rtol=1e-5, err_msg=m)
 
 
+def test_cell_tails_equal_the_reference_definitions_on_pooled_records():
+    runs, peds = synthetic_study({"P": no_effect}, n_cells=3, variants=4, n_peds=7)
+    paired = paired_delays(peds)
+    cells = cell_metrics(runs, paired).set_index(["cell", "controller"])
+    per = paired.assign(cell=paired["episode"].str.rsplit("-v", n=1).str[0])
+    for (cell, ctrl), g in per.groupby(["cell", "controller"]):
+        d = g["delay"].to_numpy()  # 4 variants × 7 pedestrians = 28 records: tails differ
+        assert cells.loc[(cell, ctrl), "cvar90"] == pytest.approx(cvar(d))
+        assert cells.loc[(cell, ctrl), "worst_decile"] == pytest.approx(worst_decile(d))
+        assert cvar(d) != pytest.approx(worst_decile(d))
+
+
 def test_episode_weights_resample_within_cells_and_follow_the_seed():
     runs, peds = synthetic_study({"P": no_effect}, n_cells=5, variants=4)
     design = build_design(runs, paired_delays(peds))

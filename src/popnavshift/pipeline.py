@@ -188,10 +188,3 @@ def run_populations(folder: Path, s: PopulationSettings) -> pd.DataFrame:
     return table
 
 
-def run_population_pipeline(folder: Path, s: PopulationSettings, show_progress: bool = True):
-    """personas → responses → profiles → populations, into ``folder``."""
-    folder = Path(folder)
-    run_personas(folder, s)
-    run_responses(folder, s, show_progress)
-    run_profiles(folder, s)
-    return run_populations(folder, s)

@@ -21,7 +21,7 @@ import pandas as pd
 from .delay import cell_metrics, paired_delays
 from .nulls import CI_LEVEL, null_rates, null_test
 from .resample import build_design, episode_weights, resampled_metrics
-from .significance import ALPHA, LEVEL, Orderings, crossover_tests, orderings
+from .significance import ALPHA, LEVEL, crossover_tests, orderings
 
 #: The metrics the significance analysis ranks: the paper's three and CVaR-90.
 EVIDENCE_METRICS: tuple[str, ...] = ("robot_time", "mean_delay", "worst_decile", "cvar90")
@@ -127,20 +127,6 @@ def controller_ranks(cells: pd.DataFrame, boot: np.ndarray, metric: str,
                          "p_first": float((ranks[:, j] == 1).mean()),
                          "n_cells": int(keep_units.sum())})
     return pd.DataFrame(rows)
-
-
-def crossover_summary(crossovers: pd.DataFrame) -> pd.DataFrame:
-    """Per (comparison, metric): tests, tests with p ≤ ALPHA unadjusted, and crossovers
-    after multiplicity control."""
-    g = crossovers.groupby(["comparison", "metric"], sort=False)
-    return g.agg(tests=("p", "count"), raw_p_below=("p", lambda p: int((p <= ALPHA).sum())),
-                 crossovers=("crossover", "sum")).reset_index()
-
-
-def significant_share(o: Orderings) -> float:
-    """Share of present orderings that are significant (a quick read of power)."""
-    s = o.sig[np.isfinite(o.sig)]
-    return float((s != 0).mean()) if s.size else float("nan")
 
 
 def complete_design(runs: pd.DataFrame, pedestrians: pd.DataFrame, populations: Sequence[str]

@@ -35,7 +35,6 @@ from .reversals import MATCHED, population_pairs
 from .significance import Orderings, PairCounts, pair_counts
 
 RULES: tuple[str, ...] = ("sig", "raw")
-RULE_LABELS = {"sig": "significant", "raw": "raw (includes near-ties)"}
 CI_LEVEL = 0.95  # coverage of the excess interval
 
 

@@ -24,8 +24,7 @@ vectors in numba, without rebuilding tables:
 
 With all weights 1 each equals the cell metric of
 :func:`popnavshift.analysis.delay.cell_metrics` (up to the order of float sums).
-A weight column is an episode; ``Design.columns`` may also map a row's entries to
-other columns (used by the episode-flip null, :mod:`.nulls`).
+A weight column is an episode.
 """
 
 from __future__ import annotations
@@ -71,23 +70,6 @@ class Design:
     @property
     def n_columns(self) -> int:
         return len(self.episodes)
-
-    def subset(self, mask: np.ndarray) -> Design:
-        """The design restricted to the rows where ``mask`` holds (same columns)."""
-        keep = np.flatnonzero(mask)
-        return Design(self.rows.iloc[keep].reset_index(drop=True), self.episodes,
-                      _take(self.times, keep), _take(self.delays, keep),
-                      _take(self.records, keep),
-                      {k: _take(v, keep) for k, v in self.outcomes.items()})
-
-
-def _take(csr: CSR, rows: np.ndarray) -> CSR:
-    lengths = (csr.ptr[rows + 1] - csr.ptr[rows]).astype(np.int64)
-    ptr = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
-    idx = (np.concatenate([np.arange(csr.ptr[r], csr.ptr[r + 1]) for r in rows])
-           if len(rows) else np.zeros(0, np.int64)).astype(np.int64)
-    aux = csr.aux[idx] if csr.aux.size else csr.aux
-    return CSR(ptr, csr.col[idx], csr.val[idx], aux)
 
 
 def _csr(row: np.ndarray, col: np.ndarray, val: np.ndarray, n_rows: int,

@@ -62,11 +62,11 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
     for i, (label, (obs_pairs, nulls)) in enumerate(designs.items()):
         pops = design_populations(obs_pairs, nulls)
         r, p = complete_design(runs, peds, pops)
-        if (r["controller"] == NO_ROBOT).all():
-            missing[label] = f"the {label} design has no robot runs"
-            continue
         if r.empty:
             missing[label] = f"no episode has runs of every population of the {label} design"
+            continue
+        if (r["controller"] == NO_ROBOT).all():
+            missing[label] = f"the {label} design has no robot runs"
             continue
         obs_pops = list(dict.fromkeys(x for pair in obs_pairs for x in pair))
         one = {label: (obs_pairs, nulls)}

@@ -75,9 +75,12 @@ def plan(
         p.add_row(r.comparison, r.metric, r.rule, f"{100 * r.excess:+.1f} pp",
                   f"{100 * r.effect:.0f} pp", str(int(r.seed_sets_used)), need, r.verdict)
     console.print(p)
-    console.print("seed sets needed: to detect the effect (the observed excess, or 5 pp when "
-                  "smaller) with 80% power at one-sided 5%; add them as `seeds:` to the "
-                  "parts that run the comparison and its null.", highlight=False)
+    from ..analysis.replicates import ALPHA_ONE_SIDED, MIN_EFFECT, POWER
+
+    console.print(f"seed sets needed: to detect the effect (the observed excess, or "
+                  f"{100 * MIN_EFFECT:g} pp when smaller) with {100 * POWER:g}% power at "
+                  f"one-sided {100 * ALPHA_ONE_SIDED:g}%; add them as `seeds:` to the parts "
+                  "that run the comparison and its null.", highlight=False)
 
 
 def power_advice(path: Path):

@@ -34,7 +34,6 @@ CODEBOOK_NAME = "persona_codes.schema.json"
 DATA_DIR = "data"
 MANIFEST_NAME = "manifest.json"
 HF_SCHEME = "hf://"
-RELEASE_REPO = "MatrAIx2026/MatrAIx_Persona_1M_Public_Release"
 _HF_PATTERNS = (CODEBOOK_NAME, MANIFEST_NAME, f"{DATA_DIR}/**")
 _PATH_KEYS = ("path", "name", "file")
 

@@ -36,7 +36,6 @@ SWAP_PREFIX = "matched_swap"
 SIZED_TAG = "_sized"
 #: The population every size-matched subset is drawn from (and its own null).
 SIZED_SOURCE = "mixed"
-NULL_KINDS: tuple[str, ...] = ("swap", "sized")
 ARMS: tuple[str, str] = ("a", "b")
 
 _SWAP = re.compile(rf"^{SWAP_PREFIX}(\d+)_([ab])$")

@@ -127,7 +127,8 @@ def answer_section(tables: dict[str, pd.DataFrame], missing: dict[str, str],
                               "design; its 95% interval resamples episodes within cells; p = "
                               "(1 + #null ≥ observed)/(1 + P). Verdicts: 'beats the null' needs "
                               f"the interval above 0 and p ≤ 0.05; 'no excess ≥ {MIN_EFFECT:g}' "
-                              "means the interval rules out an excess of 5 points.")})
+                              f"means the interval rules out an excess of "
+                              f"{100 * MIN_EFFECT:g} points.")})
     rows = []
     for r in head.sort_values(["comparison", "metric", "rule"], kind="stable").itertuples():
         rows.append([r.comparison, LABELS.get(r.metric, r.metric),
