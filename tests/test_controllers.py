@@ -10,14 +10,14 @@ import pytest
 from navground import core, sim
 
 from popnavshift.errors import ConfigError, UnknownNameError
-from popnavshift.sim.controllers import CONTROLLERS
-from popnavshift.sim.controllers.builtin import register_navground_types
-from popnavshift.sim.controllers.check import (
+from popnavshift.sim.check import (
     ControllerContractError,
     check_controller,
     ped_agent,
     robot_agent,
 )
+from popnavshift.sim.controllers import CONTROLLERS
+from popnavshift.sim.controllers.builtin import register_navground_types
 
 DT = 0.1
 GOAL = (20.0, 0.0)

@@ -22,8 +22,8 @@ from popnavshift.plugins import (
     make_respondent,
     parse_controller_id,
 )
+from popnavshift.sim.check import check_controller
 from popnavshift.sim.controllers import CONTROLLERS
-from popnavshift.sim.controllers.check import check_controller
 from popnavshift.sim.run import ControllerError, failed_result, simulate
 from popnavshift.tables import check_table
 

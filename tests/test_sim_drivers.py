@@ -9,12 +9,12 @@ from navground import core
 
 from popnavshift.episodes import assign_slots, get_episode
 from popnavshift.sim.bench import synthetic_population
-from popnavshift.sim.controllers import CONTROLLERS
-from popnavshift.sim.controllers.check import (
+from popnavshift.sim.check import (
     BehaviourOnly,
     ControllerContractError,
     check_controller,
 )
+from popnavshift.sim.controllers import CONTROLLERS
 from popnavshift.sim.controllers.reactive import ReactiveDriver
 from popnavshift.sim.run import simulate
 

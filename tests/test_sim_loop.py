@@ -9,8 +9,8 @@ from popnavshift.episodes import assign_slots, get_episode
 from popnavshift.episodes.scenes import distance_to_walls
 from popnavshift.errors import InputError
 from popnavshift.sim.bench import synthetic_population
+from popnavshift.sim.loop import _wall_distances
 from popnavshift.sim.pedestrians import entry_fraction
-from popnavshift.sim.run import _wall_distances
 from popnavshift.sim.slots import slot_profiles
 
 

@@ -221,3 +221,20 @@ def test_runs_are_bit_identical_in_one_process_and_across_processes():
     out = subprocess.run([sys.executable, "-c", SCRIPT.format(tests=tests, episode=episode)],
                          capture_output=True, text=True, check=True, timeout=120)
     assert out.stdout.strip() == json.dumps(first)
+
+
+def test_the_metrics_computed_are_the_ones_the_tables_declare():
+    """A metric is declared once in tables.py and computed in sim/metrics.py: a run's
+    row and pedestrian columns carry exactly the declared metrics, in their order."""
+    from popnavshift.sim.run import failed_result
+    from popnavshift.tables import PEDESTRIAN_METRICS, PEDESTRIANS, ROBOT_METRICS, RUNS
+
+    spec = get_episode("head_on-w2.4-d0.06-s1.0-v1")
+    robot_names = [c.name for c in ROBOT_METRICS]
+    ped_names = [c.name for c in PEDESTRIAN_METRICS]
+    for result in (simulate(spec, None, "robot_orca"), simulate(spec, None, None),
+                   failed_result(spec, "robot_orca", "orca")):
+        assert set(result.run) <= set(RUNS.names)
+        assert [k for k in result.run if k in robot_names] == robot_names
+        assert set(result.ped_columns) <= set(PEDESTRIANS.names)
+        assert [k for k in result.ped_columns if k in ped_names] == ped_names

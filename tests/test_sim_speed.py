@@ -9,7 +9,7 @@ import weakref
 import pandas as pd
 import pytest
 
-import popnavshift.sim.run as run_module
+import popnavshift.sim.loop as loop_module
 from popnavshift.engine.plan import Batch, Run
 from popnavshift.engine.worker import Context, run_batch
 from popnavshift.episodes import assign_slots, get_episode
@@ -29,7 +29,7 @@ CONTROLLERS = {"none": lambda: None, "robot_orca": lambda: "robot_orca",
 def stretch_log(monkeypatch):
     """Counts the stretches the loop runs and the ones that were not quiet."""
     log = {"stretches": 0, "steps": 0, "not_quiet": 0}
-    original = run_module._Loop._stretch
+    original = loop_module.StepLoop._stretch
 
     def counted(self, step, k, robot_in, robot_active):
         log["stretches"] += 1
@@ -40,7 +40,7 @@ def stretch_log(monkeypatch):
             log["not_quiet"] += 1
             raise
 
-    monkeypatch.setattr(run_module._Loop, "_stretch", counted)
+    monkeypatch.setattr(loop_module.StepLoop, "_stretch", counted)
     return log
 
 
@@ -60,7 +60,7 @@ def test_quiet_stretches_give_the_step_by_step_runs(backend, stretch_log):
 def test_a_stretch_that_was_not_quiet_reruns_the_run_step_by_step(monkeypatch, stretch_log):
     """A bound that promises too much (every stretch as long as allowed) must not
     change a single value: the run is simulated again step by step."""
-    monkeypatch.setattr(run_module, "quiet_steps", lambda *args: args[-1])
+    monkeypatch.setattr(loop_module, "quiet_steps", lambda *args: args[-1])
     spec = get_episode("crossing-w1.8-d0.2-s1.0-v1")
     slots = assign_slots(spec, members("mixed", 30, 0.6))
     for name in ("none", "robot_orca", "early_yield"):
@@ -101,7 +101,7 @@ def test_a_run_leaves_no_recording_alive(monkeypatch):
     """The stretches' recording callback must not keep a finished run's recording
     (and its world) alive through C++, out of the garbage collector's reach."""
     recordings = []
-    execute = run_module._Loop.execute
+    execute = loop_module.StepLoop.execute
 
     def keep_a_weak_reference(self):
         try:
@@ -109,7 +109,7 @@ def test_a_run_leaves_no_recording_alive(monkeypatch):
         finally:
             recordings.append(weakref.ref(self.rec))
 
-    monkeypatch.setattr(run_module._Loop, "execute", keep_a_weak_reference)
+    monkeypatch.setattr(loop_module.StepLoop, "execute", keep_a_weak_reference)
     spec = get_episode("head_on-w2.4-d0.06-s1.0-v1")
     for controller in ("robot_orca", None):
         simulate(spec, None, controller)

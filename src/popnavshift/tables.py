@@ -272,6 +272,37 @@ _RUN_COLUMNS = (
          "the answers), reassign, shuffle, block-<block>, second_respondent"),
 )
 
+#: the robot's metrics: columns of ``runs`` that :func:`popnavshift.sim.metrics.robot_metrics`
+#: computes, in its order (adding a metric: declare it here, compute it there)
+ROBOT_METRICS: tuple[Column, ...] = (
+    _col("robot_time", "float", "success time, else the 45 s limit", "s", nullable=True,
+         missing="no robot (controller none)"),
+    _col("outcome_time", "float", "time of the outcome", "s", nullable=True,
+         missing=_NO_ROBOT_NAN),
+    _col("robot_path_length", "float", "robot path length until the outcome", "m",
+         nullable=True, missing=_NO_ROBOT_NAN),
+    _col("robot_stop_time", "float", "time the robot moved slower than 0.05 m/s before "
+         "the outcome", "s", nullable=True, missing=_NO_ROBOT_NAN),
+    _col("robot_min_clearance", "float", "smallest robot–pedestrian distance minus radii "
+         "before the outcome", "m", nullable=True, missing=_NO_ROBOT_NAN),
+    _col("ped_collisions", "int", "robot–pedestrian contact events over the run"),
+    _col("world_collisions", "int", "robot–wall/obstacle contact events over the run"),
+)
+#: each pedestrian's metrics: columns of ``pedestrians`` that
+#: :func:`popnavshift.sim.metrics.pedestrian_metrics` computes, in its order
+PEDESTRIAN_METRICS: tuple[Column, ...] = (
+    _col("arrived", "bool", "reached its exit before the 45 s limit"),
+    _col("travel_time", "float", "time from t = 0 to crossing the exit line", "s",
+         nullable=True, missing="never arrived"),
+    _col("walk_distance", "float", "path length up to the exit (or the end of the run)",
+         "m"),
+    _col("stop_time", "float", "time slower than 0.05 m/s before leaving", "s"),
+    _col("detour", "float", "walked minus the straight line from start to exit point",
+         "m", nullable=True, missing="never arrived"),
+    _col("min_robot_clearance", "float", "smallest distance to the robot minus both "
+         "radii", "m", nullable=True, missing="no robot in the run"),
+)
+
 RUNS = declare(
     "runs",
     (
@@ -284,18 +315,7 @@ RUNS = declare(
         _col("n_peds", "int", "number of pedestrians"),
         _col("outcome", "str", "the robot's first event: success, pedestrian_collision, "
              "world_collision, timeout, controller_error; none without a robot"),
-        _col("robot_time", "float", "success time, else the 45 s limit", "s", nullable=True,
-             missing="no robot (controller none)"),
-        _col("outcome_time", "float", "time of the outcome", "s", nullable=True,
-             missing=_NO_ROBOT_NAN),
-        _col("robot_path_length", "float", "robot path length until the outcome", "m",
-             nullable=True, missing=_NO_ROBOT_NAN),
-        _col("robot_stop_time", "float", "time the robot moved slower than 0.05 m/s before "
-             "the outcome", "s", nullable=True, missing=_NO_ROBOT_NAN),
-        _col("robot_min_clearance", "float", "smallest robot–pedestrian distance minus radii "
-             "before the outcome", "m", nullable=True, missing=_NO_ROBOT_NAN),
-        _col("ped_collisions", "int", "robot–pedestrian contact events over the run"),
-        _col("world_collisions", "int", "robot–wall/obstacle contact events over the run"),
+        *ROBOT_METRICS,
         _col("peds_arrived", "int", "pedestrians that reached their exit"),
         _col("steps", "int", "simulation steps of 0.1 s"),
         _col("error", "str", "what the controller raised", nullable=True,
@@ -312,16 +332,7 @@ PEDESTRIANS = declare(
         _col("slot", "int", "pedestrian index in the episode, from 0"),
         _col("persona_id", "str", "the population member walking in this slot",
              refers=PERSONA_REF),
-        _col("arrived", "bool", "reached its exit before the 45 s limit"),
-        _col("travel_time", "float", "time from t = 0 to crossing the exit line", "s",
-             nullable=True, missing="never arrived"),
-        _col("detour", "float", "walked minus the straight line from start to exit point",
-             "m", nullable=True, missing="never arrived"),
-        _col("min_robot_clearance", "float", "smallest distance to the robot minus both "
-             "radii", "m", nullable=True, missing="no robot in the run"),
-        _col("walk_distance", "float", "path length up to the exit (or the end of the run)",
-             "m"),
-        _col("stop_time", "float", "time slower than 0.05 m/s before leaving", "s"),
+        *PEDESTRIAN_METRICS,
         *_param_columns(),
     ),
     (*RUN_KEY, "slot"),

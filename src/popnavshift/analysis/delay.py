@@ -16,7 +16,6 @@ import pandas as pd
 from ..errors import InputError
 from ..tables import NO_ROBOT
 
-TIME_LIMIT = 45.0  # [s] robot travel time counted for failed runs
 CVAR_SHARE = 0.1  # the upper tail of the CVaR-90 delay statistic
 CELL_COLUMNS: tuple[str, ...] = ("scene", "width", "density", "robot_speed")
 #: What a no-robot baseline shares with the robot runs it is paired with (besides ``slot``).

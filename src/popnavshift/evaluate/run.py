@@ -99,7 +99,7 @@ def check(factory: Any) -> str:
     """Run :func:`check_controller`: a broken contract is a ConfigError; a controller
     that merely raises in the checker's small world is reported and let through,
     since its runs that raise are recorded as controller errors."""
-    from ..sim.controllers.check import ControllerContractError, check_controller
+    from ..sim.check import ControllerContractError, check_controller
 
     try:
         check_controller(factory)

@@ -53,11 +53,12 @@ from ..episodes import SCENES, VARIANTS, Cell, EpisodeSpec, all_cells, assign_sl
 from ..errors import ConfigError
 from ..hashing import stable_seed
 from ..tables import PARAM_RANGES, PARAMS
+from .constants import DT
 from .controllers import CONTROLLERS
 from .pedestrians import BACKENDS
 from .run import simulate
 from .slots import SlotProfiles, slot_profiles
-from .world import DT, build_world
+from .world import build_world
 
 TARGET_RATIO = 1.3  # full stack within this factor of bare navground, overall (issue #15)
 PART_TARGET_RATIO = 2.0  # … and within this one in every condition and every scene
@@ -260,15 +261,15 @@ CATEGORY_RULES: tuple[tuple[str, str, frozenset[str]], ...] = (
      frozenset({"<built-in method navground.sim._navground_sim.run>"})),
     ("response layer kernel", "sim/quiet.py", frozenset({"replay_quiet"})),
     ("loop bookkeeping", "sim/quiet.py", frozenset({"quiet_steps", "robot_touched"})),
-    ("loop bookkeeping", "sim/run.py", frozenset({"_stretch"})),
+    ("loop bookkeeping", "sim/loop.py", frozenset({"_stretch"})),
     # the per-step numba kernel: pose copy, exits, goal entry and the response layer
     ("response layer kernel", "sim/pedestrians.py", frozenset({"_respond", "advance"})),
     ("response layer writes", "sim/pedestrians.py", frozenset({"step", "write"})),
     ("robot controller (Python)", "", frozenset({"compute_cmd_internal"})),
-    ("robot controller (Python)", "sim/run.py", frozenset({"_drive"})),
+    ("robot controller (Python)", "sim/loop.py", frozenset({"_drive"})),
     ("robot controller (Python)", "sim/controllers/", frozenset()),
-    ("metrics", "sim/run.py", frozenset({"robot_metrics", "pedestrian_metrics"})),
-    ("loop bookkeeping", "sim/run.py",
+    ("metrics", "sim/metrics.py", frozenset()),
+    ("loop bookkeeping", "sim/loop.py",
      frozenset({"execute", "_robot_contacts", "_robot_arrived"})),
     ("loop bookkeeping", "sim/pedestrians.py", frozenset({"crossed_exit"})),
     ("loop bookkeeping", "sim/world.py", frozenset({"remove_agent", "stop_agent"})),

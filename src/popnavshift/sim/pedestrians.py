@@ -49,8 +49,8 @@ from numba import njit
 
 from ..episodes.specs import PED_RADIUS, VIA_LEAD, EpisodeSpec
 from ..registry import Registry
+from .constants import DT, PED_GOAL_TOLERANCE
 
-DT = 0.1  # [s] simulation step (robot velocity is a finite difference over one step)
 SENSE_RANGE = 6.0  # [m] pedestrians notice the robot within this distance
 T_PROJ = 4.0  # [s] constant-velocity projection horizon
 G_CLEARANCE = 0.35  # d_eff = d (1 − 0.35 g)
@@ -63,7 +63,6 @@ WP_TOLERANCE = 0.2  # [m] navground target tolerance of a waypoint (< WP_REACHED
 WP_CLEARANCE = 0.1  # [m] free space beyond r_p a waypoint needs from walls and obstacles
 F_DETOUR = 0.3  # lowest speed factor while stepping aside
 F_QUANTUM = 0.05  # speed factors are multiples of this
-GOAL_TOLERANCE = 0.3  # [m] of a pedestrian's final goal (placed 2 m past its exit)
 
 FLAG_REACTING, FLAG_YIELDING, FLAG_DETOURING = 1, 2, 4
 
@@ -162,7 +161,7 @@ def make_pedestrian(
     agent.last_cmd = agent.twist  # HL relaxes from the last command
     agent.id = agent_id
     agent.type = "pedestrian"
-    b.target = core.Target.Point(target, GOAL_TOLERANCE)
+    b.target = core.Target.Point(target, PED_GOAL_TOLERANCE)
     return agent
 
 
@@ -189,7 +188,7 @@ class ResponseLayer:
         n = len(behaviors)
         self.behaviors = behaviors
         self.route_targets = [  # stage 0: via point, stage 1: goal
-            [core.Target.Point(tuple(p), GOAL_TOLERANCE) for p in points]
+            [core.Target.Point(tuple(p), PED_GOAL_TOLERANCE) for p in points]
             for points in (spec.ped_vias, spec.ped_goals)
         ]
         rows = np.asarray(profiles, np.float64).reshape(n, 7).T

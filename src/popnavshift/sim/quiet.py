@@ -23,9 +23,9 @@ import numpy as np
 from numba import njit
 
 from ..episodes.specs import PED_RADIUS
-from .controllers import ROBOT_SENSING_RANGE
+from .constants import DT, ROBOT_SENSING_RANGE
 from .controllers._rollout import sense_neighbors
-from .pedestrians import DT, SENSE_RANGE, advance
+from .pedestrians import SENSE_RANGE, advance
 
 MARGIN = 0.3  # [m] kept free beyond the speed bound: collision pushes, float32 poses
 MIN_STRETCH = 4  # shorter stretches save less than their set-up costs

@@ -15,11 +15,16 @@ from typing import cast
 import numpy as np
 from navground import core, sim
 
-from ..episodes.specs import PED_RADIUS, EpisodeSpec
-from .controllers import GOAL_TOLERANCE, ROBOT_RADIUS, ROBOT_SENSING_RANGE, WHEEL_AXIS
-from .pedestrians import DT, PedestrianBackend, make_pedestrian
-
-MAX_STEPS = 450  # 45 s episode limit
+from ..episodes.specs import EpisodeSpec
+from .constants import (
+    DT,
+    PED_RADIUS,
+    ROBOT_GOAL_TOLERANCE,
+    ROBOT_RADIUS,
+    ROBOT_SENSING_RANGE,
+    WHEEL_AXIS,
+)
+from .pedestrians import PedestrianBackend, make_pedestrian
 
 
 @dataclass
@@ -82,7 +87,7 @@ def _make_robot(spec: EpisodeSpec, controller) -> tuple[sim.Agent, core.Behavior
     behavior.pose = pose  # Agent.update re-syncs it; set here for after_placement
     robot.id = 0
     robot.type = "robot"
-    behavior.target = core.Target.Point((gx, gy), GOAL_TOLERANCE)
+    behavior.target = core.Target.Point((gx, gy), ROBOT_GOAL_TOLERANCE)
     return robot, behavior
 
 

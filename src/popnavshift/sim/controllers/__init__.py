@@ -32,10 +32,11 @@ from navground import core, sim
 
 from ...registry import Registry
 
-ROBOT_RADIUS = 0.35  # [m]
-WHEEL_AXIS = 0.5  # [m]
-ROBOT_SENSING_RANGE = 6.0  # [m], same for every controller
-GOAL_TOLERANCE = 0.3  # [m]
+# the robot every controller drives: declared in sim/constants.py, re-exported for plug-ins
+from ..constants import ROBOT_GOAL_TOLERANCE as ROBOT_GOAL_TOLERANCE
+from ..constants import ROBOT_RADIUS as ROBOT_RADIUS
+from ..constants import ROBOT_SENSING_RANGE as ROBOT_SENSING_RANGE
+from ..constants import WHEEL_AXIS as WHEEL_AXIS
 
 
 class ControllerFactory(Protocol):

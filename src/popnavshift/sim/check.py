@@ -29,10 +29,18 @@ from collections.abc import Sequence
 import numpy as np
 from navground import core, sim
 
-from ...errors import ConfigError
-from . import GOAL_TOLERANCE, ROBOT_RADIUS, ROBOT_SENSING_RANGE, WHEEL_AXIS, ControllerFactory
+from ..episodes.specs import get_episode
+from ..errors import ConfigError
+from .constants import (
+    PED_RADIUS,
+    ROBOT_GOAL_TOLERANCE,
+    ROBOT_RADIUS,
+    ROBOT_SENSING_RANGE,
+    WHEEL_AXIS,
+)
+from .controllers import ControllerFactory
+from .run import simulate
 
-PED_RADIUS = 0.25  # [m]
 ROBOT_SPEEDS = (0.6, 1.0)  # [m/s] the cell speeds of SPEC §6
 _CMD_TOL = 1e-4  # [m/s], [rad/s] float32 slack on feasibility
 
@@ -55,7 +63,7 @@ def robot_agent(factory: ControllerFactory, start: Sequence[float], goal: Sequen
     agent.id = 0
     heading = math.atan2(goal[1] - start[1], goal[0] - start[0])
     agent.pose = core.Pose2(tuple(start), heading)
-    behavior.target = core.Target.Point(tuple(goal), GOAL_TOLERANCE)
+    behavior.target = core.Target.Point(tuple(goal), ROBOT_GOAL_TOLERANCE)
     return agent
 
 
@@ -201,9 +209,6 @@ class BehaviourOnly:
 def check_loop_driver(factory: ControllerFactory) -> None:
     """Rule 5: raise :class:`ControllerContractError` where the factory's loop driver
     and its behaviour part ways (the first step at which the robot's poses differ)."""
-    from ...episodes.specs import get_episode
-    from ..run import simulate
-
     if not callable(getattr(factory, "loop_driver", None)):
         return
     for episode in DRIVER_EPISODES:
