@@ -172,10 +172,10 @@ def test_a_study_file_names_controllers_with_parameters():
 
 
 def test_backends_and_respondents_by_class_spec():
-    assert make_backend("popnavshift.sim.pedestrians:HLBackend").name == "hl"
+    assert make_backend("popnavshift.sim.backends:HLBackend").name == "hl"
     spec, members = slots()
-    run = simulate(spec, members, None, "popnavshift.sim.pedestrians:HLBackend").run
-    assert run["backend"] == "popnavshift.sim.pedestrians:HLBackend"
+    run = simulate(spec, members, None, "popnavshift.sim.backends:HLBackend").run
+    assert run["backend"] == "popnavshift.sim.backends:HLBackend"
     rule = make_respondent("popnavshift.responses.rule:RuleRespondent", seed=3)
     assert rule.name == "rule"
     with pytest.raises(ConfigError, match="not a pedestrian backend"):

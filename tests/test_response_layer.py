@@ -8,8 +8,8 @@ import pytest
 from navground import core
 
 from popnavshift.episodes import get_episode
+from popnavshift.sim.backends import BACKENDS
 from popnavshift.sim.pedestrians import (
-    BACKENDS,
     FLAG_DETOURING,
     FLAG_REACTING,
     FLAG_YIELDING,

@@ -66,7 +66,7 @@ def test_a_loop_driver_gives_the_run_of_its_navground_behaviour(name, backend):
 
 def test_a_reactive_driver_robot_senses_nothing_itself():
     """The reactive driver's robot has no navground sensing (the loop senses for it)."""
-    from popnavshift.sim.pedestrians import BACKENDS
+    from popnavshift.sim.backends import BACKENDS
     from popnavshift.sim.world import build_world
 
     spec = get_episode(EPISODES[0])

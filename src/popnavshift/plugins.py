@@ -40,8 +40,8 @@ if TYPE_CHECKING:
 
     from .registry import Registry
     from .responses.respondent import Respondent
+    from .sim.backends import PedestrianBackend
     from .sim.controllers import ControllerFactory
-    from .sim.pedestrians import PedestrianBackend
 
 _DOTTED = r"[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*"
 OBJECT_SPEC = re.compile(rf"^{_DOTTED}:{_DOTTED}$")
@@ -224,7 +224,7 @@ def make_backend(name: str) -> PedestrianBackend:
 
     A class must provide ``name``, ``horizon`` [m], ``behavior(kinematics, radius)``
     and ``describe()``; it is instantiated without arguments."""
-    from .sim.pedestrians import BACKENDS
+    from .sim.backends import BACKENDS
 
     obj = load_object(name, "backend") if is_object_spec(name) else _registered(BACKENDS, name)
     if not (isinstance(obj, type) and _has(obj, BACKEND_METHODS)):

@@ -1,12 +1,9 @@
-"""Pedestrian backends and the robot-conditioned response layer (SPEC §6, paper §III-E).
+"""The robot-conditioned response layer of the pedestrians (SPEC §6, paper §III-E).
 
-Backends (registry :data:`BACKENDS`) build the navground behaviour that moves a
-pedestrian: ``orca`` (omnidirectional ORCA, 4.5 m horizon) and ``hl`` (Human-like,
-5 m horizon). Both get their preferred speed and target from the response layer
-only; no Task is attached.
-
-The response layer (:class:`ResponseLayer`) is one numba kernel per step over all
-pedestrians. For pedestrian i with profile θ_i = (v, d, a, y, τ, L, g):
+The pedestrians' navground behaviours come from a backend (:mod:`.backends`); they
+get their preferred speed and target from the response layer only. The response
+layer (:class:`ResponseLayer`) is one numba kernel per step over all pedestrians.
+For pedestrian i with profile θ_i = (v, d, a, y, τ, L, g):
 
 * aware once the robot has been within :data:`SENSE_RANGE` for τ_i seconds;
 * conflict when, projecting the robot at its current velocity and the pedestrian
@@ -40,15 +37,12 @@ and the response layer; Python is left with the navground calls.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
-from typing import Any, Protocol
 
 import numpy as np
-from navground import core, sim
+from navground import core
 from numba import njit
 
 from ..episodes.specs import PED_RADIUS, VIA_LEAD, EpisodeSpec
-from ..registry import Registry
 from .constants import DT, PED_GOAL_TOLERANCE
 
 SENSE_RANGE = 6.0  # [m] pedestrians notice the robot within this distance
@@ -65,104 +59,6 @@ F_DETOUR = 0.3  # lowest speed factor while stepping aside
 F_QUANTUM = 0.05  # speed factors are multiples of this
 
 FLAG_REACTING, FLAG_YIELDING, FLAG_DETOURING = 1, 2, 4
-
-
-class PedestrianBackend(Protocol):
-    """Builds one pedestrian's navground behaviour; ``horizon`` [m] is also its sensing range."""
-
-    @property
-    def name(self) -> str: ...
-
-    @property
-    def horizon(self) -> float: ...
-
-    def behavior(self, kinematics: core.Kinematics, radius: float) -> core.Behavior: ...
-
-    def describe(self) -> dict[str, Any]: ...
-
-
-@dataclass(frozen=True)
-class ORCABackend:
-    """Ped-ORCA: navground ORCA on omnidirectional kinematics."""
-
-    name: str = "orca"
-    horizon: float = 4.5  # [m]; also the sensing range of the pedestrian
-    time_horizon: float = 3.0  # [s] vs agents (navground default 10 s is very timid)
-    static_time_horizon: float = 1.0  # [s] vs walls and obstacles
-    safety_margin: float = 0.05  # [m]
-
-    def behavior(self, kinematics: core.Kinematics, radius: float) -> core.Behavior:
-        b = core.behaviors.ORCABehavior(kinematics, radius)
-        b.horizon = self.horizon
-        b.time_horizon = self.time_horizon
-        b.static_time_horizon = self.static_time_horizon
-        b.safety_margin = self.safety_margin
-        return b
-
-    def describe(self) -> dict[str, Any]:
-        return asdict(self)
-
-
-@dataclass(frozen=True)
-class HLBackend:
-    """Ped-HL: navground's Human-like behaviour (Guzzi et al. 2013)."""
-
-    name: str = "hl"
-    horizon: float = 5.0  # [m]
-    tau: float = 0.5  # [s] velocity relaxation time
-    eta: float = 0.5  # [s] speed ≤ free distance / eta
-    aperture: float = math.pi / 2  # [rad] search ± this around the heading
-    resolution: int = 61  # directions sampled over 2·aperture
-    safety_margin: float = 0.05  # [m]
-
-    def behavior(self, kinematics: core.Kinematics, radius: float) -> core.Behavior:
-        b = core.behaviors.HLBehavior(kinematics, radius)
-        b.horizon = self.horizon
-        b.tau = self.tau
-        b.eta = self.eta
-        b.aperture = self.aperture
-        b.resolution = self.resolution
-        b.safety_margin = self.safety_margin
-        return b
-
-    def describe(self) -> dict[str, Any]:
-        return asdict(self)
-
-
-BACKENDS: Registry[PedestrianBackend] = Registry("backend")
-BACKENDS.register("orca", ORCABackend)
-BACKENDS.register("hl", HLBackend)
-
-
-def make_pedestrian(
-    backend: PedestrianBackend,
-    position: tuple[float, float],
-    target: tuple[float, float],
-    speed: float,
-    radius: float,
-    agent_id: int,
-) -> sim.Agent:
-    """A pedestrian agent already walking towards ``target`` at ``speed`` [m/s].
-
-    It gets its own kinematics (max speed = ``speed``) and starts with that velocity,
-    so backends with a velocity relaxation (HL) do not spend the first second
-    accelerating.
-    """
-    kin = core.kinematics.OmnidirectionalKinematics(max_speed=speed, max_angular_speed=10.0)
-    b = backend.behavior(kin, radius)
-    b.optimal_speed = speed
-    b.heading_behavior = core.Behavior.Heading.velocity
-    se = sim.state_estimations.BoundedStateEstimation(range=backend.horizon)
-    agent = sim.Agent(radius=radius, behavior=b, kinematics=kin, state_estimations=[se])
-    heading = math.atan2(target[1] - position[1], target[0] - position[0])
-    agent.pose = core.Pose2(position, heading)
-    velocity = (speed * math.cos(heading), speed * math.sin(heading))
-    agent.twist = core.Twist2(velocity, 0.0, frame=core.Frame.absolute)
-    agent.last_cmd = agent.twist  # HL relaxes from the last command
-    agent.id = agent_id
-    agent.type = "pedestrian"
-    b.target = core.Target.Point(target, PED_GOAL_TOLERANCE)
-    return agent
 
 
 def effective_clearance(d: np.ndarray, g: np.ndarray) -> np.ndarray:

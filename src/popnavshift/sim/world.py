@@ -16,6 +16,7 @@ import numpy as np
 from navground import core, sim
 
 from ..episodes.specs import EpisodeSpec
+from .backends import PedestrianBackend, make_pedestrian
 from .constants import (
     DT,
     PED_RADIUS,
@@ -24,7 +25,6 @@ from .constants import (
     ROBOT_SENSING_RANGE,
     WHEEL_AXIS,
 )
-from .pedestrians import PedestrianBackend, make_pedestrian
 
 
 @dataclass

@@ -12,7 +12,7 @@ three-state machine:
   and whose closest approach to the robot, both at constant velocity (the
   robot at its cell speed towards the goal), within ``conflict_horizon`` (cut
   at the time to reach the goal) is below the radii plus ``buffer``. Any
-  conflict: pick a pull-aside point (:func:`._rollout.pull_aside_point`) →
+  conflict: pick a pull-aside point (:func:`._yielding.pull_aside_point`) →
   PULL_ASIDE.
 * PULL_ASIDE — the inner ORCA drives to that point; on arrival (or after
   ``pull_aside_timeout``) → WAIT.
@@ -37,7 +37,8 @@ import numpy as np
 from navground import core, sim
 
 from ._params import Param, require_two_wheels, resolve_params
-from ._rollout import conflicting, neighbors_array, pull_aside_point, static_arrays
+from ._rollout import neighbors_array, static_arrays
+from ._yielding import conflicting, pull_aside_point
 from .robot_orca import break_symmetry, configure_orca, first_command_workaround
 
 GO, PULL_ASIDE, WAIT = "go", "pull_aside", "wait"
