@@ -266,7 +266,7 @@ def controller_stamp(factory: Any) -> str:
 
 
 #: modules under sim/ that no run executes (the benchmark, the contract check)
-_NOT_SIMULATION = frozenset({"sim/bench.py", "sim/check.py"})
+_NOT_SIMULATION = frozenset({"sim/bench.py", "sim/bench_profile.py", "sim/check.py"})
 
 
 @functools.cache
