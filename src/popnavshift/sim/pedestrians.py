@@ -29,7 +29,7 @@ goal 2 m past its exit line. Without a robot the layer only advances routes.
 Speed factors are quantised to multiples of 0.05 and written to navground only
 when they change; targets are written only on the events above.
 
-The stepping loop (:mod:`popnavshift.sim.run`) does all its per-step array work in
+The stepping loop (:mod:`popnavshift.sim.loop`) does all its per-step array work in
 one kernel, :func:`advance`: recorded poses, exit crossings, the robot's goal entry
 and the response layer; Python is left with the navground calls.
 """

@@ -1,7 +1,7 @@
 """Quiet stretches: steps in which the stepping loop has nothing to do, run by navground.
 
-The loop (:mod:`popnavshift.sim.run`) acts on navground only on events: a pedestrian
-crosses its via or exit line, the response layer changes a speed or a target, the
+The stepping loop (:mod:`popnavshift.sim.loop`) acts on navground only on events: a
+pedestrian crosses its via or exit line, the response layer changes a speed or a target, the
 robot touches something or enters its goal, a loop driver decides something. Far
 from every line and from the robot, with no pedestrian yielding or detouring, none
 of these can happen for a while: :func:`quiet_steps` bounds how long (from the

@@ -52,7 +52,7 @@ class ControllerFactory(Protocol):
 
 
 class LoopDriver(Protocol):
-    """A controller computed by the stepping loop (:mod:`popnavshift.sim.run`).
+    """A controller computed by the stepping loop (:mod:`popnavshift.sim.loop`).
 
     A Python behaviour costs ~30 us per step inside navground's update (the
     C++→Python call, then reading the sensed neighbours through the binding); the
