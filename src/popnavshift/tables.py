@@ -252,7 +252,10 @@ EPISODES = declare(
 RUN_KEY: tuple[str, ...] = ("episode", "population", "controller", "backend", "mapping")
 NO_ROBOT = "none"
 """The ``controller`` value of a no-robot baseline run."""
-"""A run's identity: ``controller == "none"`` is the no-robot baseline."""
+#: how a run's profile set was made, as columns (values:
+#: :meth:`popnavshift.populations.perturb.ProfileSet.columns`)
+PROFILE_SET_COLUMNS: tuple[str, ...] = (
+    "profile_set", "profile_base", "perturbation", "perturbation_arg")
 
 _NO_ROBOT_NAN = "no robot (controller none), or the controller raised (controller_error)"
 _RUN_COLUMNS = (
@@ -270,6 +273,14 @@ _RUN_COLUMNS = (
          "for an episode id …@s<k>"),
     _col("profile_set", "str", "how the profile set was made: original (a mapping A–D of "
          "the answers), reassign, shuffle, block-<block>, second_respondent"),
+    _col("profile_base", "str", "the mapping (A–D) the profile set's profiles come from"),
+    _col("perturbation", "str", "how the profile set departs from profile_base: none, "
+         "reassign (whole profiles moved among persona ids), shuffle (each parameter "
+         "column permuted within a population), block (only one response block varies), "
+         "second_respondent (the matched pair answered by a second respondent)"),
+    _col("perturbation_arg", "str", "the perturbation's argument: the block (time_pressure, "
+         "caution, trust) or the second respondent's name; empty for none, reassign and "
+         "shuffle"),
 )
 
 RUNS = declare(
