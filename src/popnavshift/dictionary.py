@@ -7,11 +7,13 @@ tables :func:`popnavshift.tables.check_table` enforces.
 
 from __future__ import annotations
 
+from .personas.table import PERSONAS
 from .tables import DTYPES, SPECS, Column, TableSpec
 
-#: the tables of a study folder, in pipeline order
+#: the tables of a study folder, in pipeline order (the personas table is declared with
+#: the persona fields: importing it registers it)
 STUDY_TABLES: tuple[str, ...] = (
-    "personas",
+    PERSONAS.stage,
     "responses",
     "responses_invalid",
     "profiles",

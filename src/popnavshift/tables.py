@@ -3,6 +3,8 @@
 ``check_table(df, stage)`` validates a table against its declaration and raises
 :class:`InputError` naming the stage, the column and what was expected. Stages
 and tests call it on what they produce and what they read.
+The ``personas`` table's columns are the persona fields, so it is declared beside
+them (:mod:`popnavshift.personas.table`): this layer imports no stage package.
 """
 
 from __future__ import annotations
@@ -127,29 +129,6 @@ MAPPING_DOC = (
     "A~block-<block>, A~<respondent>-2)"
 )
 
-
-def _persona_columns() -> tuple[Column, ...]:
-    from .personas.fields import OPTIONAL_FIELDS, REQUIRED_FIELDS, field_catalog
-
-    def field(name: str, nullable: bool) -> Column:
-        spec = field_catalog()[name]
-        values = ", ".join(spec["values"])
-        missing = "the source record lacks the field" if nullable else ""
-        return Column(name, "str", nullable, doc=f"{spec['label']}: one of {values}",
-                      missing=missing)
-
-    return (
-        _col("persona_id", "str", "persona id: syn-NNNNNN (synthetic), the table's id, or "
-             "source:source_record_id (MatrAIx release)"),
-        _col("source", "str", "where the record comes from: synthetic, the table's file "
-             "name, or the release record's source (gss, wiki, …)"),
-        *(field(f, False) for f in REQUIRED_FIELDS),
-        *(field(f, True) for f in OPTIONAL_FIELDS),
-    )
-
-
-PERSONAS = declare("personas", _persona_columns(), ("persona_id",),
-                   doc="one persona record sampled from the persona source")
 
 _VARIANT = _col("variant", "str", "persona variant asked: baseline, or deadline (time "
                 "pressure set to Deadline, the matched intervention)")

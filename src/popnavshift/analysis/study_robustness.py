@@ -15,13 +15,12 @@ import numpy as np
 import pandas as pd
 
 from ..engine.folder import StudyFolder, part_runs
+from ..populations.perturb import with_profile_set_columns
 from ..tables import PROFILE_SET_COLUMNS
 from .delay import cell_metrics, paired_delays
 from .robustness import agreement_with, backend_rates, matched_rates, rates_by_set
 
 PARTS = ("mapping", "structure", "backend", "respondent")
-
-
 #: the profile-set columns a table of sets carries beside ``mapping`` (``profile_set``
 #: restates them)
 SET_COLUMNS: tuple[str, ...] = tuple(c for c in PROFILE_SET_COLUMNS if c != "profile_set")
@@ -37,7 +36,8 @@ def part_cells(
     if got is None:
         return None
     runs, peds = got
-    sets = runs[["mapping", *SET_COLUMNS]].drop_duplicates("mapping")
+    # a folder written before the columns existed gets them from its labels
+    sets = with_profile_set_columns(runs.drop_duplicates("mapping"))[["mapping", *SET_COLUMNS]]
     return cell_metrics(runs, paired_delays(peds)), sets
 
 

@@ -74,9 +74,20 @@ def _rate_cells(r: Any) -> list[Any]:
     ]
 
 
-def _paper(figures: dict[str, paper.Rates], key: str, metric: str) -> Cell:
-    value = figures.get(key, {}).get(metric)
+def _paper(figures: dict[str, paper.Rates], key: str | None, metric: str) -> Cell:
+    value = None if key is None else figures.get(key, {}).get(metric)
     return Cell(pct(value) if value is not None else "—", "paper")
+
+
+def _mapping_key(r: Any) -> str | None:
+    """The paper's key of a mapping row: an unperturbed mapping A–D (a perturbed set
+    has no paper figure in Table III)."""
+    return r.profile_base if r.perturbation == "none" else None
+
+
+def _perturbation_key(r: Any) -> str | None:
+    """The paper's key of a structure or respondent row: its perturbation of Mapping A."""
+    return r.perturbation if r.profile_base == "A" else None
 
 
 def robustness_sections(
@@ -109,9 +120,9 @@ def robustness_sections(
                     r.mapping,
                     METRIC_LABELS[r.metric],
                     *_rate_cells(r),
-                    _paper(paper.MAPPING_RATE, r.profile_base, r.metric),
+                    _paper(paper.MAPPING_RATE, _mapping_key(r), r.metric),
                     "—" if r.mapping == "A" else pct(a),
-                    _paper(paper.MAPPING_AGREEMENT, r.profile_base, r.metric),
+                    _paper(paper.MAPPING_AGREEMENT, _mapping_key(r), r.metric),
                 ]
             )
         s.blocks.append(
@@ -140,7 +151,7 @@ def robustness_sections(
                 set_label(r),
                 METRIC_LABELS[r.metric],
                 *_rate_cells(r),
-                _paper(paper.STRUCTURE_RATE, r.perturbation, r.metric),
+                _paper(paper.STRUCTURE_RATE, _perturbation_key(r), r.metric),
             ]
             for r in t.sort_values(["mapping", "metric"]).itertuples()
         ]
@@ -192,7 +203,7 @@ def robustness_sections(
                 "first (Mapping A)" if r.perturbation == "none" else f"second ({r.mapping})",
                 METRIC_LABELS[r.metric],
                 *_rate_cells(r),
-                _paper(paper.RESPONDENT_RATE, r.perturbation, r.metric),
+                _paper(paper.RESPONDENT_RATE, _perturbation_key(r), r.metric),
             ]
             for r in t.sort_values(["mapping", "metric"]).itertuples()
         ]
