@@ -62,7 +62,14 @@ def width_decreases(by_width: pd.DataFrame, label: str) -> Finding:
                    f"({label})", bool(holds), numbers)
 
 
-def tail_ratio(outcomes: pd.DataFrame, k: float = 4.0, rel_tol: float = 0.25) -> Finding:
+#: our reading of "approximately": within this fraction of the paper's ratio
+TAIL_REL_TOL = 0.25
+#: the band of worst-decile / mean delay that counts as the paper's "about four times"
+TAIL_BAND = (TAIL_TO_MEAN_RATIO * (1 - TAIL_REL_TOL), TAIL_TO_MEAN_RATIO * (1 + TAIL_REL_TOL))
+
+
+def tail_ratio(outcomes: pd.DataFrame, k: float = TAIL_TO_MEAN_RATIO,
+               rel_tol: float = TAIL_REL_TOL) -> Finding:
     """Worst-decile delay ≈ k × mean delay: every controller's ratio within k (1 ± rel_tol)."""
     ratio = outcomes["worst_decile"] / outcomes["mean_delay"]
     holds = len(ratio) > 0 and ratio.between(k * (1 - rel_tol), k * (1 + rel_tol)).all()

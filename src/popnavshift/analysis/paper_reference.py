@@ -12,7 +12,7 @@ from __future__ import annotations
 Rates = dict[str, float]  # metric → reversal rate
 
 #: the paper's main grid: cells and populations (a smaller study's intervals are wider)
-CELLS, POPULATIONS = 104, 8
+N_CELLS, N_POPULATIONS = 104, 8
 
 #: Table I: comparison (matched, all_pairs) → cells (all, completed) → metric → rate
 REVERSAL_RATE: dict[str, dict[str, Rates]] = {

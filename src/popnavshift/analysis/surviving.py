@@ -23,6 +23,7 @@ import pandas as pd
 
 from ..tables import NO_ROBOT
 from .delay import CELL_KEY, cell_metrics, episode_cells, paired_delays
+from .findings import TAIL_BAND
 from .nulls import centred_interval
 from .paper_reference import MATCHED_CHANGE_SIGN
 from .resample import build_design, episode_weights, resampled_metrics
@@ -30,7 +31,6 @@ from .reversals import MATCHED
 from .significance import LEVEL
 
 WIDTH_SCENES = ("sidewalk", "bottleneck")
-TAIL_BAND = (3.0, 5.0)  # "about four times": 4 (1 ± 0.25)
 METRICS_NEEDED = ("mean_delay", "worst_decile", "success_share", "timeout_share")
 
 

@@ -73,11 +73,11 @@ def summary_section(a: Analysis) -> Section:
                          "this study's tables; the numbers are ours."))
     if a.cells is not None:
         n_cells, n_pops = a.cells["cell"].nunique(), a.cells["population"].nunique()
-        if n_cells < paper.CELLS or n_pops < paper.POPULATIONS:
+        if n_cells < paper.N_CELLS or n_pops < paper.N_POPULATIONS:
             s.blocks.append(para(
                 f"This run covers {n_cells} cells and {n_pops} population"
                 f"{'' if n_pops == 1 else 's'} (the paper: "
-                f"{paper.CELLS} and {paper.POPULATIONS}). With so few cells the intervals are "
+                f"{paper.N_CELLS} and {paper.N_POPULATIONS}). With so few cells the intervals are "
                 "wide and findings can flip with more data.", "note"))
     if a.missing.get("findings"):
         s.blocks.append(para(a.missing["findings"].capitalize() + ".", "note"))
