@@ -13,7 +13,7 @@ once into data; the runs and pedestrians tables carry it as columns. Labels:
 * ``A~block-<name>``: profiles mapped from responses in which only one response block
   varies across personas and every other answer is set to its population-wide typical
   value (median level; most common action per probe);
-* ``A~<respondent label>``: the matched pair re-profiled from a second respondent.
+* ``A~<respondent>-2``: the matched pair re-profiled from a second respondent.
 """
 
 from __future__ import annotations
