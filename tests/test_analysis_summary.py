@@ -9,7 +9,6 @@ import pandas as pd
 import pytest
 
 from popnavshift.analysis import (
-    PAPER,
     controller_outcomes,
     delay_change,
     no_robot_checks,
@@ -19,7 +18,8 @@ from popnavshift.analysis import (
     population_sensitivity,
     sensitivity_by_width,
 )
-from popnavshift.analysis.summary import (
+from popnavshift.analysis import paper_reference as paper
+from popnavshift.analysis.findings import (
     burden_exceeds_time,
     completed_lower,
     tail_ratio,
@@ -66,7 +66,7 @@ def test_controller_outcomes_by_hand():
     assert r["n_runs"] == 4 and r["n_cells"] == 2
     assert out.loc["robot_orca", "world_collision_pct"] == 100.0
     assert math.isnan(out.loc["zeta", "mean_delay"])
-    assert set(PAPER["controller_outcomes"]["reactive"]) <= set(out.columns)
+    assert set(paper.CONTROLLER_OUTCOMES["reactive"]) <= set(out.columns)
 
 
 def test_population_sensitivity_by_hand():
@@ -185,15 +185,16 @@ def test_single_findings_hold_and_fail():
 
 def test_paper_findings_on_the_papers_own_numbers():
     rows = []
-    for comparison, by_cells in PAPER["reversal_rate"].items():
+    for comparison, by_cells in paper.REVERSAL_RATE.items():
         for scope, by_metric in by_cells.items():
             for metric, rate in by_metric.items():
                 rows.append({"comparison": comparison, "cells": scope, "metric": metric,
                              "rate": rate})
     table1 = pd.DataFrame(rows)
-    outcomes = pd.DataFrame(PAPER["controller_outcomes"]).T
-    widths = {"pooled": pd.DataFrame({"width": [1.8, 4.2], "sensitivity": [2.23, 0.50]})}
-    sign = PAPER["matched_change_sign"]
+    outcomes = pd.DataFrame(paper.CONTROLLER_OUTCOMES).T
+    ws = paper.WIDTH_SENSITIVITY
+    widths = {"pooled": pd.DataFrame({"width": list(ws), "sensitivity": list(ws.values())})}
+    sign = paper.MATCHED_CHANGE_SIGN
     change = pd.DataFrame({"controller": list(sign), "population": "matched_deadline",
                            "change": [0.1 * s for s in sign.values()]})
     found = paper_findings(table1, outcomes, widths, change)

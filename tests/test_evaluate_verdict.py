@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from popnavshift.evaluate.card import card_tables, render_html
+from popnavshift.evaluate.card import card_tables
+from popnavshift.evaluate.card_page import render_html
 from popnavshift.evaluate.verdict import card_evidence, verdict
 from popnavshift.populations.build import population_order
 from synth_study import crossover, no_effect, synthetic_study

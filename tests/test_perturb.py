@@ -5,7 +5,6 @@ import pandas as pd
 import pytest
 
 from popnavshift.personas.variants import matched_ids
-from popnavshift.populations.build import build_populations
 from popnavshift.populations.perturb import (
     BLOCKS,
     reassign_profiles,
@@ -16,6 +15,7 @@ from popnavshift.profiles.mappings import build_profiles
 from popnavshift.responses.collect import collect_responses
 from popnavshift.responses.rule import RuleRespondent
 from popnavshift.tables import PARAMS
+from population_tables import build_populations
 
 
 @pytest.fixture(scope="module")

@@ -6,13 +6,13 @@ from popnavshift.personas.variants import matched_ids
 from popnavshift.populations.build import (
     HOMOGENEOUS_ID,
     POPULATIONS,
-    build_populations,
     population_sizes,
 )
 from popnavshift.profiles.mappings import build_profiles
 from popnavshift.responses.collect import collect_responses
 from popnavshift.responses.rule import RuleRespondent
 from popnavshift.tables import PARAMS, check_table
+from population_tables import build_populations
 
 
 @pytest.fixture

@@ -12,7 +12,8 @@ import pytest
 
 import popnavshift
 from popnavshift.errors import ConfigError, InputError, UnknownNameError
-from popnavshift.populations.perturb import profile_set_of
+from popnavshift.populations.perturb import ProfileSet, with_profile_set_columns
+from popnavshift.tables import PROFILE_SET_COLUMNS
 
 EPISODES = ["sidewalk-w4.2-d0.06-s1.0-v1", "head_on-w4.2-d0.06-s1.0-v1"]
 STUDY = f"""
@@ -61,6 +62,16 @@ def test_explicit_seed_set_profile_set_and_run_id(study):
     assert runs.groupby("mapping")["profile_set"].unique().map(list).to_dict() == {
         "A": ["original"], "A~shuffle": ["shuffle"]
     }
+    sets = runs[["mapping", *PROFILE_SET_COLUMNS]].drop_duplicates().set_index("mapping")
+    assert sets.to_dict("index") == {
+        "A": {"profile_set": "original", "profile_base": "A", "perturbation": "none",
+              "perturbation_arg": ""},
+        "A~shuffle": {"profile_set": "shuffle", "profile_base": "A", "perturbation": "shuffle",
+                      "perturbation_arg": ""},
+    }
+    assert (peds.merge(runs, on="run_id")[[f"{c}_x" for c in PROFILE_SET_COLUMNS]].to_numpy()
+            == peds.merge(runs, on="run_id")[[f"{c}_y" for c in PROFILE_SET_COLUMNS]].to_numpy()
+            ).all()
     assert str(runs["seed_set"].dtype) == "int64" and str(peds["seed_set"].dtype) == "int64"
     joined = peds.merge(runs[["run_id", "episode", "controller"]], on="run_id")
     assert len(joined) == len(peds)
@@ -101,10 +112,33 @@ def test_load_errors_name_what_is_wrong(study, tmp_path):
         popnavshift.load(tmp_path)
 
 
-def test_profile_set_labels():
-    assert [profile_set_of(m) for m in ("B", "A~reassign", "A~block-trust", "A~rule-2")] == [
-        "original", "reassign", "block-trust", "second_respondent"
-    ]
+def test_profile_set_labels_are_read_once_into_typed_sets():
+    labels = ("B", "A~reassign", "A~shuffle", "A~block-trust", "A~rule-2", "A~my-llm-2")
+    sets = [ProfileSet.parse(m) for m in labels]
+    assert [s.profile_set for s in sets] == [
+        "original", "reassign", "shuffle", "block-trust", "second_respondent",
+        "second_respondent"]
+    assert [(s.base, s.perturbation, s.arg) for s in sets] == [
+        ("B", "none", ""), ("A", "reassign", ""), ("A", "shuffle", ""), ("A", "block", "trust"),
+        ("A", "second_respondent", "rule"), ("A", "second_respondent", "my-llm")]
+    assert [s.label for s in sets] == list(labels)  # the label round-trips
+    assert [s.is_structure for s in sets] == [False, True, True, True, False, False]
+    for bad in ("A~shufle", "A~block-speed", "A~rule"):
+        with pytest.raises(ConfigError, match=re.escape(repr(bad))):
+            ProfileSet.parse(bad)
+    with pytest.raises(ConfigError, match="argument"):
+        ProfileSet("A", "block")
+
+
+def test_rows_stored_before_the_profile_set_columns_get_them_from_their_label():
+    old = pd.DataFrame({"mapping": ["A", "A~block-caution", "A~rule-2"], "x": [1, 2, 3]})
+    filled = with_profile_set_columns(old)
+    assert filled["perturbation"].tolist() == ["none", "block", "second_respondent"]
+    assert filled["perturbation_arg"].tolist() == ["", "caution", "rule"]
+    assert filled["profile_set"].tolist() == ["original", "block-caution", "second_respondent"]
+    mixed = pd.concat([filled.iloc[:1], old.iloc[1:]], ignore_index=True)  # a resumed study
+    assert with_profile_set_columns(mixed).equals(filled)
+    assert with_profile_set_columns(filled) is filled  # complete tables are left alone
 
 
 def test_the_documented_duckdb_recipe_runs(study):

@@ -7,11 +7,13 @@ tables :func:`popnavshift.tables.check_table` enforces.
 
 from __future__ import annotations
 
+from .personas.table import PERSONAS
 from .tables import DTYPES, SPECS, Column, TableSpec
 
-#: the tables of a study folder, in pipeline order
+#: the tables of a study folder, in pipeline order (the personas table is declared with
+#: the persona fields: importing it registers it)
 STUDY_TABLES: tuple[str, ...] = (
-    "personas",
+    PERSONAS.stage,
     "responses",
     "responses_invalid",
     "profiles",
@@ -53,9 +55,11 @@ peds = popnavshift.load("study", part="matched", table="pedestrians")
 rows = popnavshift.load("study", part=None)  # every row, each under its first part
 ```
 
-Nothing needs parsing out of an id: `seed_set` says which episode draw a run used
-(the `…@s<k>` episodes), `profile_set` how its profiles were made (the `A~…` profile
-sets), and `run_id` joins a run to its pedestrians. With DuckDB, straight from the
+Nothing needs parsing out of an id or a label: `seed_set` says which episode draw a
+run used (the `…@s<k>` episodes); `profile_set` how its profiles were made (the `A~…`
+profile sets), spelt out as `profile_base` (the mapping), `perturbation` and
+`perturbation_arg` (e.g. `A`, `block`, `caution` for `A~block-caution`); and `run_id`
+joins a run to its pedestrians. With DuckDB, straight from the
 files (`main` comes first in every shipped study, so its runs are exactly the rows
 stored under it):
 

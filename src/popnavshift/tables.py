@@ -3,6 +3,8 @@
 ``check_table(df, stage)`` validates a table against its declaration and raises
 :class:`InputError` naming the stage, the column and what was expected. Stages
 and tests call it on what they produce and what they read.
+The ``personas`` table's columns are the persona fields, so it is declared beside
+them (:mod:`popnavshift.personas.table`): this layer imports no stage package.
 """
 
 from __future__ import annotations
@@ -128,29 +130,6 @@ MAPPING_DOC = (
 )
 
 
-def _persona_columns() -> tuple[Column, ...]:
-    from .personas.fields import OPTIONAL_FIELDS, REQUIRED_FIELDS, field_catalog
-
-    def field(name: str, nullable: bool) -> Column:
-        spec = field_catalog()[name]
-        values = ", ".join(spec["values"])
-        missing = "the source record lacks the field" if nullable else ""
-        return Column(name, "str", nullable, doc=f"{spec['label']}: one of {values}",
-                      missing=missing)
-
-    return (
-        _col("persona_id", "str", "persona id: syn-NNNNNN (synthetic), the table's id, or "
-             "source:source_record_id (MatrAIx release)"),
-        _col("source", "str", "where the record comes from: synthetic, the table's file "
-             "name, or the release record's source (gss, wiki, …)"),
-        *(field(f, False) for f in REQUIRED_FIELDS),
-        *(field(f, True) for f in OPTIONAL_FIELDS),
-    )
-
-
-PERSONAS = declare("personas", _persona_columns(), ("persona_id",),
-                   doc="one persona record sampled from the persona source")
-
 _VARIANT = _col("variant", "str", "persona variant asked: baseline, or deadline (time "
                 "pressure set to Deadline, the matched intervention)")
 RESPONSES = declare(
@@ -252,7 +231,10 @@ EPISODES = declare(
 RUN_KEY: tuple[str, ...] = ("episode", "population", "controller", "backend", "mapping")
 NO_ROBOT = "none"
 """The ``controller`` value of a no-robot baseline run."""
-"""A run's identity: ``controller == "none"`` is the no-robot baseline."""
+#: how a run's profile set was made, as columns (values:
+#: :meth:`popnavshift.populations.perturb.ProfileSet.columns`)
+PROFILE_SET_COLUMNS: tuple[str, ...] = (
+    "profile_set", "profile_base", "perturbation", "perturbation_arg")
 
 _NO_ROBOT_NAN = "no robot (controller none), or the controller raised (controller_error)"
 _RUN_COLUMNS = (
@@ -270,6 +252,14 @@ _RUN_COLUMNS = (
          "for an episode id …@s<k>"),
     _col("profile_set", "str", "how the profile set was made: original (a mapping A–D of "
          "the answers), reassign, shuffle, block-<block>, second_respondent"),
+    _col("profile_base", "str", "the mapping (A–D) the profile set's profiles come from"),
+    _col("perturbation", "str", "how the profile set departs from profile_base: none, "
+         "reassign (whole profiles moved among persona ids), shuffle (each parameter "
+         "column permuted within a population), block (only one response block varies), "
+         "second_respondent (the matched pair answered by a second respondent)"),
+    _col("perturbation_arg", "str", "the perturbation's argument: the block (time_pressure, "
+         "caution, trust) or the second respondent's name; empty for none, reassign and "
+         "shuffle"),
 )
 
 #: the robot's metrics: columns of ``runs`` that :func:`popnavshift.sim.metrics.robot_metrics`

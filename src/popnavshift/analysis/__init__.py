@@ -14,6 +14,7 @@ from .delay import (
     tail_count,
     worst_decile,
 )
+from .findings import Finding, paper_findings
 from .reversals import (
     MATCHED,
     METRICS,
@@ -30,14 +31,11 @@ from .reversals import (
     tie_sign,
 )
 from .summary import (
-    PAPER,
-    Finding,
     controller_outcomes,
     delay_change,
     no_robot_checks,
     noise_floor,
     paired_share,
-    paper_findings,
     population_sensitivity,
     reversal_table,
     sensitivity_by_width,
@@ -46,7 +44,6 @@ from .summary import (
 __all__ = [
     "MATCHED",
     "METRICS",
-    "PAPER",
     "TOLERANCES",
     "Finding",
     "bootstrap_ratio",

@@ -22,26 +22,28 @@ from ..engine.folder import is_half, split_halves
 from ..populations.build import HALF_SUFFIXES
 from ..tables import NO_ROBOT
 from .delay import cell_metrics, paired_delays
-from .reversals import MATCHED, comparisons, population_pairs, ranking_tau
-from .summary import (
-    BUILTIN_CONTROLLERS,
-    PAPER,
+from .findings import (
     Finding,
     burden_exceeds_time,
     completed_lower,
     controller_extreme,
+    matched_change_direction,
+    paper_findings,
+    tail_ratio,
+    width_decreases,
+)
+from .paper_reference import MATCHED_CHANGE_SIGN, REVERSAL_RATE, TAIL_TO_MEAN_RATIO
+from .reversals import MATCHED, comparisons, population_pairs, ranking_tau
+from .summary import (
+    BUILTIN_CONTROLLERS,
     controller_outcomes,
     delay_change,
-    matched_change_direction,
     no_robot_checks,
     noise_floor,
     paired_share,
-    paper_findings,
     population_sensitivity,
     reversal_table,
     sensitivity_by_width,
-    tail_ratio,
-    width_decreases,
 )
 
 WIDTH_SCENES: tuple[str, ...] = ("sidewalk", "bottleneck")  # the two panels of the paper's Fig. 4
@@ -87,7 +89,7 @@ def _rankings(a: Analysis, cells: pd.DataFrame, rng_seed: int, n_boot: int) -> N
         return
     t1 = reversal_table(cells, rng=np.random.default_rng(rng_seed), n_boot=n_boot)
     a.tables["reversals"] = t1.assign(paper_rate=[
-        PAPER["reversal_rate"].get(c, {}).get(s, {}).get(m, np.nan)
+        REVERSAL_RATE.get(c, {}).get(s, {}).get(m, np.nan)
         for c, s, m in t1[["comparison", "cells", "metric"]].itertuples(index=False)])
     if not set(MATCHED) <= set(pops):
         a.missing["matched"] = f"the study lacks the matched pair ({', '.join(MATCHED)})"
@@ -249,7 +251,7 @@ def check_findings(tables: dict[str, pd.DataFrame]) -> tuple[list[Finding], str]
         (bool(widths), "the width findings (sidewalks or bottlenecks at 2+ widths)",
          lambda: [width_decreases(w, label) for label, w in widths.items()]),
         (delays, "the tail-to-mean finding",
-         lambda: [tail_ratio(outcomes, PAPER["tail_to_mean_ratio"])]),
+         lambda: [tail_ratio(outcomes, TAIL_TO_MEAN_RATIO)]),
         (ctrl, "the controller findings (all three built-in controllers)", lambda: [
             extreme("success_pct", "reactive", True), extreme("timeout_pct", "early_yield", True)]),
         (ctrl and delays, "the controller delay findings", lambda: [
@@ -257,7 +259,7 @@ def check_findings(tables: dict[str, pd.DataFrame]) -> tuple[list[Finding], str]
             extreme("worst_decile", "robot_orca", False),
             extreme("mean_delay", "early_yield", False, ("reactive", "early_yield"))]),
         (ctrl and matched, "the matched-shift direction finding",
-         lambda: [matched_change_direction(mean_change, PAPER["matched_change_sign"])]),
+         lambda: [matched_change_direction(mean_change, MATCHED_CHANGE_SIGN)]),
     ]
     found = [f for ok, _, make in checks if ok for f in make()]
     left = [what for ok, what, _ in checks if not ok]

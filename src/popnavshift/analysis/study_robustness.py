@@ -4,7 +4,9 @@ Each part named in the study's manifest (``mapping``, ``structure``, ``backend``
 ``respondent``) is selected from the runs table by its own episodes, populations,
 backends and profile sets (:func:`popnavshift.engine.folder.part_runs`) and analysed with
 :mod:`popnavshift.analysis.robustness`; parts repeated on extra seed sets give the
-spread of their rates. The paper's figures are declared here, beside the analysis.
+spread of their rates. Every table of profile sets carries the sets' columns of the
+runs table (``profile_base``, ``perturbation``, ``perturbation_arg``) beside their
+``mapping`` label, so readers never parse the label.
 """
 
 from __future__ import annotations
@@ -13,46 +15,35 @@ import numpy as np
 import pandas as pd
 
 from ..engine.folder import StudyFolder, part_runs
+from ..populations.perturb import with_profile_set_columns
+from ..tables import PROFILE_SET_COLUMNS
 from .delay import cell_metrics, paired_delays
 from .robustness import agreement_with, backend_rates, matched_rates, rates_by_set
 
-#: The paper's robustness figures (rates as fractions), for the tables beside ours.
-PAPER_ROBUSTNESS: dict[str, dict[str, dict[str, float]]] = {
-    "mapping": {
-        "A": {"mean_delay": 0.245, "worst_decile": 0.260},
-        "B": {"mean_delay": 0.242, "worst_decile": 0.286},
-        "C": {"mean_delay": 0.246, "worst_decile": 0.257},
-        "D": {"mean_delay": 0.375, "worst_decile": 0.358},
-    },
-    "agreement": {
-        "B": {"mean_delay": 0.923, "worst_decile": 0.926},
-        "C": {"mean_delay": 0.922, "worst_decile": 0.918},
-        "D": {"mean_delay": 0.768, "worst_decile": 0.710},
-    },
-    "structure": {
-        "A": {"mean_delay": 0.284, "worst_decile": 0.269},
-        "A~reassign": {"mean_delay": 0.198, "worst_decile": 0.188},
-        "A~shuffle": {"mean_delay": 0.268, "worst_decile": 0.297},
-    },
-    "backend": {
-        "orca": {"robot_time": 0.032, "mean_delay": 0.105, "worst_decile": 0.098},
-        "hl": {"robot_time": 0.024, "mean_delay": 0.352, "worst_decile": 0.346},
-    },
-    "respondent": {
-        "A": {"robot_time": 0.086, "mean_delay": 0.224, "worst_decile": 0.239},
-        "second": {"robot_time": 0.091, "mean_delay": 0.256, "worst_decile": 0.265},
-    },
-}
-
-
 PARTS = ("mapping", "structure", "backend", "respondent")
+#: the profile-set columns a table of sets carries beside ``mapping`` (``profile_set``
+#: restates them)
+SET_COLUMNS: tuple[str, ...] = tuple(c for c in PROFILE_SET_COLUMNS if c != "profile_set")
 
 
-def part_cells(study: StudyFolder, name: str, seed: int | None = None) -> pd.DataFrame | None:
-    """Cell metrics of the study part ``name`` (None when the study has no such part or
-    runs); ``seed`` selects one of the part's extra seed sets (default: the study's own)."""
+def part_cells(
+    study: StudyFolder, name: str, seed: int | None = None
+) -> tuple[pd.DataFrame, pd.DataFrame] | None:
+    """Cell metrics of the study part ``name`` and its profile sets (one row per
+    ``mapping`` with :data:`SET_COLUMNS`); None when the study has no such part or
+    runs. ``seed`` selects one of the part's extra seed sets (default: the study's own)."""
     got = part_runs(study, name, seed)
-    return None if got is None else cell_metrics(got[0], paired_delays(got[1]))
+    if got is None:
+        return None
+    runs, peds = got
+    # a folder written before the columns existed gets them from its labels
+    sets = with_profile_set_columns(runs.drop_duplicates("mapping"))[["mapping", *SET_COLUMNS]]
+    return cell_metrics(runs, paired_delays(peds)), sets
+
+
+def with_sets(table: pd.DataFrame, sets: pd.DataFrame) -> pd.DataFrame:
+    """``table`` (one row per mapping and more) with its profile sets' columns appended."""
+    return table.merge(sets, on="mapping", how="left", validate="many_to_one")
 
 
 def robustness_tables(
@@ -62,20 +53,24 @@ def robustness_tables(
     tables: dict[str, pd.DataFrame] = {}
     missing: dict[str, str] = {}
     for name in PARTS:
-        cells = part_cells(study, name)
-        if cells is None:
+        got = part_cells(study, name)
+        if got is None:
             missing[name] = f"the study has no {name!r} part (or it has no runs)"
             continue
+        cells, sets = got
         rng = np.random.default_rng(rng_seed)
         if name == "mapping":
-            tables["robust_mapping"] = rates_by_set(cells, rng=rng, n_boot=n_boot)
-            tables["robust_agreement"] = agreement_with(cells, "A")
+            tables["robust_mapping"] = with_sets(rates_by_set(cells, rng=rng, n_boot=n_boot),
+                                                 sets)
+            tables["robust_agreement"] = with_sets(agreement_with(cells, "A"), sets)
         elif name == "structure":
-            tables["robust_structure"] = rates_by_set(cells, rng=rng, n_boot=n_boot)
+            tables["robust_structure"] = with_sets(
+                rates_by_set(cells, rng=rng, n_boot=n_boot), sets)
         elif name == "backend":
             tables["robust_backend"] = backend_rates(cells, rng=rng, n_boot=n_boot)
         else:
-            tables["robust_respondent"] = matched_rates(cells, rng=rng, n_boot=n_boot)
+            tables["robust_respondent"] = with_sets(
+                matched_rates(cells, rng=rng, n_boot=n_boot), sets)
     spread = seed_spread(study, rng_seed=rng_seed, n_boot=n_boot)
     if spread is None:
         missing["seeds"] = "no study part was repeated with extra episode seed sets (`seeds`)"
@@ -90,7 +85,7 @@ def seed_spread(
     """Reversal rates (all population pairs of the part) per seed set, for every part
     with extra ``seeds`` (null designs aside: the answer section tests them); None when
     no part has any. Columns: part, seed_set, metric, backend, mapping, reversals,
-    comparisons, rate, ci_low, ci_high."""
+    comparisons, rate, ci_low, ci_high, then :data:`SET_COLUMNS`."""
     cfg = study.manifest.get("study_config") or {}
     frames = []
     for name, part in (cfg.get("parts") or {}).items():
@@ -98,11 +93,11 @@ def seed_spread(
         if not seeds or part.get("null_design"):
             continue
         for seed in [cfg.get("seed", 0), *seeds]:
-            cells = part_cells(study, name, seed)
-            if cells is None:
+            got = part_cells(study, name, seed)
+            if got is None:
                 continue
-            rates = rates_by_set(cells, rng=np.random.default_rng(rng_seed), n_boot=n_boot)
-            frames.append(rates.assign(part=name, seed_set=seed))
+            rates = rates_by_set(got[0], rng=np.random.default_rng(rng_seed), n_boot=n_boot)
+            frames.append(with_sets(rates, got[1]).assign(part=name, seed_set=seed))
     if not frames:
         return None
     out = pd.concat(frames, ignore_index=True)

@@ -1,6 +1,6 @@
 """The paper's findings under the significance rule: which survive the episode noise?
 
-:func:`popnavshift.analysis.summary.paper_findings` checks each qualitative claim
+:func:`popnavshift.analysis.findings.paper_findings` checks each qualitative claim
 of the paper on point estimates. Here each claim that is a comparison of grid
 statistics is re-checked on the paired episode bootstrap (:mod:`.resample`): its
 statistic (a difference that is positive when the claim holds, or a ratio that
@@ -23,14 +23,14 @@ import pandas as pd
 
 from ..tables import NO_ROBOT
 from .delay import CELL_KEY, cell_metrics, episode_cells, paired_delays
+from .findings import TAIL_BAND
 from .nulls import centred_interval
+from .paper_reference import MATCHED_CHANGE_SIGN
 from .resample import build_design, episode_weights, resampled_metrics
 from .reversals import MATCHED
 from .significance import LEVEL
-from .summary import PAPER
 
 WIDTH_SCENES = ("sidewalk", "bottleneck")
-TAIL_BAND = (3.0, 5.0)  # "about four times": 4 (1 ± 0.25)
 METRICS_NEEDED = ("mean_delay", "worst_decile", "success_share", "timeout_share")
 
 
@@ -90,7 +90,7 @@ def surviving_findings(runs: pd.DataFrame, pedestrians: pd.DataFrame, *,
 
     One row per finding: ``statement``, ``statistic`` (what is estimated),
     ``estimate``, ``ci_low``, ``ci_high``, ``holds`` (on the point estimate, as in
-    :func:`popnavshift.analysis.summary.paper_findings`) and ``survives`` (the whole
+    :func:`popnavshift.analysis.findings.paper_findings`) and ``survives`` (the whole
     interval agrees). Findings whose inputs are absent are left out.
     """
     paired = paired_delays(pedestrians)
@@ -124,7 +124,7 @@ def surviving_findings(runs: pd.DataFrame, pedestrians: pd.DataFrame, *,
              lambda v: (lambda m: m["reactive"] - m["early_yield"])(
                  _controller_means(cells, v["mean_delay"])), (0, np.inf)),
         ]
-    for ctrl, sign in PAPER["matched_change_sign"].items():
+    for ctrl, sign in MATCHED_CHANGE_SIGN.items():
         if ctrl in ctrls and set(MATCHED) <= set(cells["population"]):
             word = "lowers" if sign < 0 else "raises"
             checks.append((f"The matched deadline shift {word} {ctrl}'s mean delay",

@@ -30,6 +30,7 @@ from ..pipeline import (
     run_responses,
 )
 from ..plugins import run_code_stamp
+from ..populations.perturb import ProfileSet
 from ..progress import console
 from ..responses.probes import PROBE_SET_HASH
 from ..tables import RUN_KEY
@@ -64,9 +65,6 @@ class RunReport:
         return not self.stages_run and self.executed == 0 and not self.compacted
 
 
-STRUCTURE_LABELS = ("A~reassign", "A~shuffle", "A~block-")
-
-
 def population_settings(study: Study) -> PopulationSettings:
     used = {m for part in study.parts.values() for m in part.mappings}
     null_parts = [part for part in study.parts.values() if part.null_design is not None]
@@ -86,7 +84,7 @@ def population_settings(study: Study) -> PopulationSettings:
         mappings=tuple(dict.fromkeys(("A", *study.mappings))),
         respondent2=None if second is None else second.name,
         respondent2_options={} if second is None else dict(second.options),
-        structure=any(m.startswith(STRUCTURE_LABELS) for m in used),
+        structure=any(ProfileSet.parse(m).is_structure for m in used),
         nulls=nulls,
         null_mappings=tuple(sorted({m for part in null_parts for m in part.mappings})),
     )

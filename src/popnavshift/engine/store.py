@@ -22,6 +22,7 @@ import pyarrow.parquet as pq
 
 from ..errors import InputError
 from ..io import write_atomic, write_json, write_parquet
+from ..populations.perturb import with_profile_set_columns
 from ..tables import RUN_KEY as TABLE_RUN_KEY
 from ..tables import RUNS, check_table
 from .plan import Batch, Run
@@ -192,6 +193,7 @@ class RunStore:
         if "error" not in runs.columns:  # shards written before the column existed
             runs["error"] = None
         runs["error"] = runs["error"].astype("string")  # all-None would be Arrow's null type
+        runs, peds = with_profile_set_columns(runs), with_profile_set_columns(peds)
         runs = runs.sort_values(RUN_KEY, kind="stable").reset_index(drop=True)
         peds = peds.sort_values([*RUN_KEY, "slot"], kind="stable").reset_index(drop=True)
         check_table(runs, "runs")

@@ -81,17 +81,18 @@ def _check_names(study: Study) -> None:
 
 def known_mappings(study: Study) -> list[str]:
     """Profile-set labels the study's population stage can build."""
-    from ..populations.perturb import BLOCKS, label
+    from ..populations.perturb import BLOCKS, ProfileSet
     from ..profiles.mappings import MAPPINGS
 
     for mapping in study.mappings:
         if mapping not in MAPPINGS:
             raise UnknownNameError("mapping (study mappings)", mapping, MAPPINGS.names())
-    known = ["A", *study.mappings, label("reassign"), label("shuffle")]
-    known += [label("block", block) for block in BLOCKS]
+    sets = [ProfileSet(m) for m in ("A", *study.mappings)]
+    sets += [ProfileSet("A", kind) for kind in ("reassign", "shuffle")]
+    sets += [ProfileSet("A", "block", block) for block in BLOCKS]
     if study.respondent2 is not None:
-        known.append(f"A~{study.respondent2.name}-2")
-    return sorted(set(known))
+        sets.append(ProfileSet("A", "second_respondent", study.respondent2.name))
+    return sorted({s.label for s in sets})
 
 
 def _check_respondent(name: str, options: dict[str, Any]) -> None:

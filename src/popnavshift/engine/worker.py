@@ -96,13 +96,14 @@ def run_batch(
 ) -> tuple[str, pd.DataFrame, pd.DataFrame, float]:
     """Simulate every run of ``batch``; returns (batch id, runs, pedestrians, seconds)."""
     from ..episodes.specs import get_episode, seed_set_of
-    from ..populations.perturb import profile_set_of
+    from ..populations.perturb import ProfileSet
     from ..sim.run import ControllerError, failed_result, pedestrian_table, simulate
     from ..sim.slots import SlotProfiles, profiles_of_members
 
     ctx = context or _CONTEXT
     assert ctx is not None, "worker used before init_worker"
     started = time.perf_counter()
+    profile_set = ProfileSet.parse(batch.mapping).columns()  # one profile set per batch
     spec = get_episode(batch.episode, seed=ctx.episode_seed)
     slots: dict[str, SlotProfiles] = {}  # per population: the same for every controller
     run_rows, ped_columns = [], []
@@ -126,7 +127,7 @@ def run_batch(
             "mapping": run.mapping,
             "run_id": run.id,
             "seed_set": seed_set_of(run.episode, ctx.episode_seed),
-            "profile_set": profile_set_of(run.mapping),
+            **profile_set,
         }
         run_rows.append({**result.run, **keys, "error": error})
         ped_columns.append(result.ped_columns)

@@ -269,7 +269,8 @@ def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0,
     from ..analysis import episode_cells
     from ..analysis.replicates import seed_sets
     from ..viz.replay import render_svg
-    from .card import card_tables, write_card
+    from .card import card_tables
+    from .card_page import write_card
 
     n_sets = int(seed_sets(ev.runs).nunique())
     card = card_tables(ev.runs, ev.pedestrians, ev.controller, ev.baselines,

@@ -23,8 +23,8 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from ..errors import ConfigError, InputError
-from ..tables import PERSONAS
 from .fields import PERSONA_FIELDS, REQUIRED_FIELDS, field_catalog, vocabulary
+from .table import PERSONAS
 
 ID_COLUMNS: tuple[str, ...] = ("persona_id", "id")
 MISSING_POLICIES: tuple[str, ...] = ("require", "fill", "error")

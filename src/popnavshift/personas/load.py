@@ -34,11 +34,12 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ConfigError, InputError
-from ..tables import PERSONAS, check_table
+from ..tables import check_table
 from .flat import apply_missing, check_missing_policy, read_flat_table, take_sample
 from .matraix import read_release
 from .release import fetch_release, is_hub_source
 from .synthetic import generate_personas
+from .table import PERSONAS
 
 SYNTHETIC = "synthetic"
 SYNTHETIC_DEFAULT_N = 600

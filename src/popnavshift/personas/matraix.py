@@ -50,11 +50,11 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from ..errors import ConfigError, InputError
-from ..tables import PERSONAS
 from .codebook import Codebook, read_codebook
 from .decode import decode_batch
 from .flat import apply_missing, check_missing_policy, sample_key
 from .release import codebook_path, find_shards, read_manifest, verify_shard
+from .table import PERSONAS
 
 DEFAULT_BATCH_SIZE = 65_536
 ROW_COLUMNS = ("source", "source_row_index", "source_record_id", "attributes")

@@ -67,7 +67,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ConfigError
-from ..tables import PERSONAS
+from .table import PERSONAS
 
 LATENTS: tuple[str, ...] = ("caution", "urgency", "tech", "mobility")
 LATENT_CORRELATION = np.array(

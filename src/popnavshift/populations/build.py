@@ -166,18 +166,6 @@ def attach_profiles(members: pd.DataFrame, profiles: pd.DataFrame) -> pd.DataFra
     return check_table(out.reset_index(drop=True), "populations")
 
 
-def build_populations(
-    personas: pd.DataFrame,
-    responses: pd.DataFrame,
-    profiles_a: pd.DataFrame,
-    matched: Sequence[str],
-    profiles: pd.DataFrame | None = None,
-) -> pd.DataFrame:
-    """Membership from Mapping A, parameters from ``profiles`` (default: Mapping A)."""
-    members = membership(personas, responses, profiles_a, matched)
-    return attach_profiles(members, profiles_a if profiles is None else profiles)
-
-
 def population_sizes(populations: pd.DataFrame) -> dict[str, int]:
     """Members per population, in the canonical order."""
     counts = populations.groupby("population")["member"].count()

@@ -2,7 +2,8 @@
 
 Every set gets a label in the ``mapping`` column of the populations table, so the
 engine and the analysis treat it like a mapping: a run's identity includes it and
-controllers are only compared within one set. Labels:
+controllers are only compared within one set. :class:`ProfileSet` is a label read
+once into data; the runs and pedestrians tables carry it as columns. Labels:
 
 * ``A``–``D``: the four mappings (:mod:`popnavshift.profiles.mappings`);
 * ``A~reassign``: whole Mapping A profile vectors reassigned among persona ids by a
@@ -12,16 +13,26 @@ controllers are only compared within one set. Labels:
 * ``A~block-<name>``: profiles mapped from responses in which only one response block
   varies across personas and every other answer is set to its population-wide typical
   value (median level; most common action per probe);
-* ``A~<respondent label>``: the matched pair re-profiled from a second respondent.
+* ``A~<respondent>-2``: the matched pair re-profiled from a second respondent.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import pandas as pd
 
+from ..errors import ConfigError
 from ..hashing import stable_seed
-from ..tables import ACTION_COLUMNS, PARAMS, Q_COLUMNS, Z_COLUMNS, check_table
+from ..tables import (
+    ACTION_COLUMNS,
+    PARAMS,
+    PROFILE_SET_COLUMNS,
+    Q_COLUMNS,
+    Z_COLUMNS,
+    check_table,
+)
 
 #: Response blocks for the single-block runs: item columns (and whether actions vary).
 BLOCKS: dict[str, tuple[tuple[str, ...], bool]] = {
@@ -31,26 +42,85 @@ BLOCKS: dict[str, tuple[tuple[str, ...], bool]] = {
 }
 
 
-UNPERTURBED = "original"
-SECOND_RESPONDENT = "second_respondent"
+#: the ``perturbation`` of a profile set: how it departs from its base mapping
+PERTURBATIONS: tuple[str, ...] = ("none", "reassign", "shuffle", "block", "second_respondent")
+#: perturbations of the structure study (built only when a study asks for one)
+STRUCTURE_PERTURBATIONS: tuple[str, ...] = ("reassign", "shuffle", "block")
 
 
-def profile_set_of(mapping: str) -> str:
-    """The ``profile_set`` column: how a profile set was made, from its label.
+@dataclass(frozen=True)
+class ProfileSet:
+    """A profile set as data: the mapping its profiles come from, how they were
+    perturbed, and the perturbation's argument (a block name, the second respondent's
+    name; empty otherwise).
 
-    ``original`` (a mapping A–D of the respondent's answers), ``reassign``, ``shuffle``,
-    ``block-<name>``, or ``second_respondent`` (``A~<respondent>-2``).
+    The study file names a set by its label (``A``, ``A~block-caution``, ``A~rule-2``);
+    :meth:`parse` reads a label once and :attr:`label` writes it back, so nothing
+    downstream splits strings: the runs and pedestrians tables carry :meth:`columns`.
     """
-    base, sep, kind = mapping.partition("~")
-    if not sep:
-        return UNPERTURBED
-    if kind in ("reassign", "shuffle") or kind.startswith("block-"):
-        return kind
-    return SECOND_RESPONDENT if kind.endswith("-2") else kind
+
+    base: str
+    perturbation: str = "none"
+    arg: str = ""
+
+    def __post_init__(self) -> None:
+        if self.perturbation not in PERTURBATIONS:
+            raise ConfigError(f"profile set perturbation {self.perturbation!r}: one of "
+                              f"{', '.join(PERTURBATIONS)}")
+        if bool(self.arg) != (self.perturbation in ("block", "second_respondent")):
+            raise ConfigError(f"profile set {self.perturbation!r}: argument {self.arg!r} "
+                              "(blocks and second respondents take one, nothing else does)")
+
+    @classmethod
+    def parse(cls, label: str) -> ProfileSet:
+        """The set a label names: ``<base>``, ``<base>~reassign``, ``<base>~shuffle``,
+        ``<base>~block-<block>`` or ``<base>~<respondent>-2``."""
+        base, sep, rest = label.partition("~")
+        if not sep:
+            return cls(base)
+        if rest in ("reassign", "shuffle"):
+            return cls(base, rest)
+        kind, _, block = rest.partition("-")
+        if kind == "block" and block in BLOCKS:
+            return cls(base, "block", block)
+        respondent, _, two = rest.rpartition("-")
+        if respondent and two == "2":
+            return cls(base, "second_respondent", respondent)
+        raise ConfigError(f"profile set {label!r}: not <mapping>~reassign, ~shuffle, "
+                          f"~block-<{'|'.join(BLOCKS)}> or ~<respondent>-2")
+
+    @property
+    def label(self) -> str:
+        """The study file's name of the set (the ``mapping`` column)."""
+        if self.perturbation == "none":
+            return self.base
+        if self.perturbation == "block":
+            return f"{self.base}~block-{self.arg}"
+        if self.perturbation == "second_respondent":
+            return f"{self.base}~{self.arg}-2"
+        return f"{self.base}~{self.perturbation}"
+
+    @property
+    def profile_set(self) -> str:
+        """The ``profile_set`` column: ``original``, ``reassign``, ``shuffle``,
+        ``block-<block>`` or ``second_respondent``."""
+        if self.perturbation == "none":
+            return "original"
+        return f"block-{self.arg}" if self.perturbation == "block" else self.perturbation
+
+    @property
+    def is_structure(self) -> bool:
+        return self.perturbation in STRUCTURE_PERTURBATIONS
+
+    def columns(self) -> dict[str, str]:
+        """The set's columns of the runs and pedestrians tables (:data:`PROFILE_SET_COLUMNS`)."""
+        values = (self.profile_set, self.base, self.perturbation, self.arg)
+        return dict(zip(PROFILE_SET_COLUMNS, values, strict=True))
 
 
 def label(kind: str, detail: str | None = None, base: str = "A") -> str:
-    return f"{base}~{kind}" if detail is None else f"{base}~{kind}-{detail}"
+    """The label of ``base`` perturbed by ``kind`` (``detail``: its argument)."""
+    return ProfileSet(base, kind, detail or "").label
 
 
 def reassign_profiles(profiles: pd.DataFrame, seed: int) -> pd.DataFrame:
@@ -99,4 +169,19 @@ def single_block_responses(responses: pd.DataFrame, block: str) -> pd.DataFrame:
     if not actions_vary:
         for a in ACTION_COLUMNS:
             out[a] = str(base[a].value_counts().sort_index().idxmax())
+    return out
+
+
+def with_profile_set_columns(table: pd.DataFrame) -> pd.DataFrame:
+    """``table`` with :data:`PROFILE_SET_COLUMNS` filled from its ``mapping`` labels where
+    they are absent: rows stored before a column existed are carried, not re-run."""
+    present = [c for c in PROFILE_SET_COLUMNS if c in table.columns]
+    complete = len(present) == len(PROFILE_SET_COLUMNS)
+    if "mapping" not in table.columns or complete and not table[present].isna().any(axis=None):
+        return table
+    sets = {m: ProfileSet.parse(str(m)).columns() for m in table["mapping"].unique()}
+    out = table.copy()
+    for column in PROFILE_SET_COLUMNS:
+        derived = out["mapping"].map({m: c[column] for m, c in sets.items()})
+        out[column] = out[column].fillna(derived) if column in out else derived
     return out

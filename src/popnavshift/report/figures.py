@@ -22,7 +22,8 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
 
-from ..analysis import MATCHED, METRICS, PAPER  # noqa: E402
+from ..analysis import MATCHED, METRICS  # noqa: E402
+from ..analysis.paper_reference import WIDTH_SENSITIVITY  # noqa: E402
 from ..analysis.summary import controller_order  # noqa: E402
 from ..populations.build import POPULATION_GROUPS, population_order  # noqa: E402
 from ..populations.figures import save_figure, write_profile_figures  # noqa: E402
@@ -171,8 +172,8 @@ def plot_width_sensitivity(by_width: pd.DataFrame) -> plt.Figure:
                 ax.plot(d["width"], d["sensitivity"], style, marker="o", ms=4,
                         lw=2.2 if c == "pooled" else 1.4, color=controller_colour(c, i),
                         label=f"{controller_label(c)}" if cells == "all" else None)
-        ws = sorted(PAPER["width_sensitivity"])
-        ax.scatter(ws, [PAPER["width_sensitivity"][w] for w in ws], marker="*", s=120,
+        ws = sorted(WIDTH_SENSITIVITY)
+        ax.scatter(ws, [WIDTH_SENSITIVITY[w] for w in ws], marker="*", s=120,
                    color="black", zorder=4, label="paper (pooled, both scenes)")
         ax.set_title(f"({tag}) {scene}s", fontsize=10)
         ax.set_xlabel("width (m)")

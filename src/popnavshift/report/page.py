@@ -20,18 +20,20 @@ from .answer import answer_section, ranks_section, replicates_section, surviving
 from .robustness import robustness_sections
 from .sections import (
     change_section,
-    checks_section,
-    manifest_section,
     noise_section,
     outcomes_section,
-    populations_section,
-    replays_section,
     reversals_section,
-    second_respondent,
     sensitivity_section,
     summary_section,
     tau_section,
     tradeoff_section,
+)
+from .study_sections import (
+    checks_section,
+    manifest_section,
+    populations_section,
+    replays_section,
+    second_respondent,
 )
 
 

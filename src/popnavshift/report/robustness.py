@@ -12,17 +12,24 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..analysis.study_robustness import PAPER_ROBUSTNESS
+from ..analysis import paper_reference as paper
 from .blocks import Cell, Section, para, pct, table
 from .figures import METRIC_LABELS
 
-SET_LABELS = {
-    "A~reassign": "whole profiles reassigned",
-    "A~shuffle": "columns shuffled",
-    "A~block-time_pressure": "time-pressure block only",
-    "A~block-caution": "caution block only",
-    "A~block-trust": "trust block only",
+#: how the structure section names a profile set, by its ``perturbation``
+PERTURBATION_LABELS = {
+    "reassign": "whole profiles reassigned",
+    "shuffle": "columns shuffled",
 }
+
+
+def set_label(r: Any) -> str:
+    """A structure row's profile set, from its ``perturbation`` columns."""
+    if r.perturbation == "none":
+        return f"unperturbed (Mapping {r.profile_base})"
+    if r.perturbation == "block":
+        return f"{r.perturbation_arg.replace('_', '-')} block only"
+    return PERTURBATION_LABELS.get(r.perturbation, r.mapping)
 
 
 def seeds_section(tables: dict[str, pd.DataFrame], missing: str) -> Section:
@@ -67,9 +74,20 @@ def _rate_cells(r: Any) -> list[Any]:
     ]
 
 
-def _paper(part: str, key: str, metric: str) -> Cell:
-    value = PAPER_ROBUSTNESS.get(part, {}).get(key, {}).get(metric)
+def _paper(figures: dict[str, paper.Rates], key: str | None, metric: str) -> Cell:
+    value = None if key is None else figures.get(key, {}).get(metric)
     return Cell(pct(value) if value is not None else "—", "paper")
+
+
+def _mapping_key(r: Any) -> str | None:
+    """The paper's key of a mapping row: an unperturbed mapping A–D (a perturbed set
+    has no paper figure in Table III)."""
+    return r.profile_base if r.perturbation == "none" else None
+
+
+def _perturbation_key(r: Any) -> str | None:
+    """The paper's key of a structure or respondent row: its perturbation of Mapping A."""
+    return r.perturbation if r.profile_base == "A" else None
 
 
 def robustness_sections(
@@ -102,9 +120,9 @@ def robustness_sections(
                     r.mapping,
                     METRIC_LABELS[r.metric],
                     *_rate_cells(r),
-                    _paper("mapping", r.mapping, r.metric),
+                    _paper(paper.MAPPING_RATE, _mapping_key(r), r.metric),
                     "—" if r.mapping == "A" else pct(a),
-                    _paper("agreement", r.mapping, r.metric),
+                    _paper(paper.MAPPING_AGREEMENT, _mapping_key(r), r.metric),
                 ]
             )
         s.blocks.append(
@@ -130,10 +148,10 @@ def robustness_sections(
         t = tables["robust_structure"]
         rows = [
             [
-                SET_LABELS.get(r.mapping, "unperturbed (Mapping A)"),
+                set_label(r),
                 METRIC_LABELS[r.metric],
                 *_rate_cells(r),
-                _paper("structure", r.mapping, r.metric),
+                _paper(paper.STRUCTURE_RATE, _perturbation_key(r), r.metric),
             ]
             for r in t.sort_values(["mapping", "metric"]).itertuples()
         ]
@@ -159,7 +177,7 @@ def robustness_sections(
                 r.backend,
                 METRIC_LABELS[r.metric],
                 *_rate_cells(r),
-                _paper("backend", r.backend, r.metric),
+                _paper(paper.BACKEND_RATE, r.backend, r.metric),
             ]
             for r in t.sort_values(["backend", "metric"]).itertuples()
         ]
@@ -182,10 +200,10 @@ def robustness_sections(
         t = tables["robust_respondent"]
         rows = [
             [
-                "first (Mapping A)" if r.mapping == "A" else f"second ({r.mapping})",
+                "first (Mapping A)" if r.perturbation == "none" else f"second ({r.mapping})",
                 METRIC_LABELS[r.metric],
                 *_rate_cells(r),
-                _paper("respondent", "A" if r.mapping == "A" else "second", r.metric),
+                _paper(paper.RESPONDENT_RATE, _perturbation_key(r), r.metric),
             ]
             for r in t.sort_values(["mapping", "metric"]).itertuples()
         ]
