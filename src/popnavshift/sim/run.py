@@ -30,11 +30,10 @@ from numba import njit
 
 from ..episodes.specs import PED_RADIUS, EpisodeSpec
 from ..errors import ConfigError, PopNavShiftError
-from ..plugins import make_backend, make_controller
 from ..tables import PARAMS
-from .controllers import GOAL_TOLERANCE, ROBOT_RADIUS, ROBOT_SENSING_RANGE, LoopDriver
+from .controllers import CONTROLLERS, GOAL_TOLERANCE, ROBOT_RADIUS, ROBOT_SENSING_RANGE, LoopDriver
 from .controllers._rollout import sense_neighbors
-from .pedestrians import ResponseLayer, advance
+from .pedestrians import BACKENDS, ResponseLayer, advance
 from .quiet import NotQuiet, quiet_steps, replay_quiet, robot_touched
 from .slots import SlotProfiles, slot_profiles
 from .world import DT, MAX_STEPS, SimWorld, build_world, remove_agent, stop_agent
@@ -101,7 +100,7 @@ def simulate(
     """
     profiles, persona_ids = slot_profiles(spec, slots)
     factory, controller_name = resolve_controller(controller)
-    ped_backend = make_backend(backend)
+    ped_backend = BACKENDS.make(backend)
     try:
         trace = _run(spec, profiles, factory, controller_name, ped_backend, record,
                      stretches=stretches and not record)
@@ -184,11 +183,11 @@ def _pedestrian_columns(spec: EpisodeSpec, controller: str, backend: str, trace:
 def resolve_controller(controller):
     """(factory or None, name) for a controller id (a registered name, an entry point or
     ``package.module:Class``, optionally with JSON parameters; see
-    :mod:`popnavshift.plugins`), a factory object, or None/"none"."""
+    :mod:`popnavshift.sim.controllers.registry`), a factory object, or None/"none"."""
     if controller is None or controller == "none":
         return None, "none"
     if isinstance(controller, str):
-        return make_controller(controller), controller
+        return CONTROLLERS.make(controller), controller
     if not (hasattr(controller, "build") and hasattr(controller, "after_placement")):
         raise ConfigError(
             "controller must be a name, a ControllerFactory or None, "

@@ -3,9 +3,10 @@
 Every controller drives the same robot: a differential-drive disk of radius
 :data:`ROBOT_RADIUS` with :data:`WHEEL_AXIS`, the cell's robot speed as its
 optimal speed, the same goal, limits and sensing range. A controller is a
-factory registered by name::
+factory registered by name in :data:`CONTROLLERS` (the built-ins in
+:mod:`.builtin`; ids, plug-ins and ``make`` in :mod:`.registry`)::
 
-    CONTROLLERS.register("robot_orca", RobotORCA)
+    CONTROLLERS.make('robot_orca{"time_horizon":4.0}')
 
 A factory is called as ``factory(**params)`` and returns a
 :class:`ControllerFactory`-like object with
@@ -30,7 +31,7 @@ from typing import Any, Protocol
 import numpy as np
 from navground import core, sim
 
-from ...registry import Registry
+from .registry import ControllerRegistry
 
 ROBOT_RADIUS = 0.35  # [m]
 WHEEL_AXIS = 0.5  # [m]
@@ -87,6 +88,6 @@ class LoopDriver(Protocol):
     def step(self, step: int, pose: np.ndarray, peds: np.ndarray, ids: np.ndarray) -> None: ...
 
 
-CONTROLLERS: Registry[ControllerFactory] = Registry("controller")
+CONTROLLERS = ControllerRegistry()
 
 from . import builtin  # noqa: E402, F401  (registers the built-in controllers)

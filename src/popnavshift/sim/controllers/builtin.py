@@ -31,6 +31,9 @@ BUILTINS: dict[str, Callable[..., ControllerFactory]] = {
     "early_yield": early_yield.EarlyYield,
     "robot_orca": RobotORCA,
 }
+#: the paper's controllers, in its order: the default of a study part and the
+#: baselines of ``popnavshift evaluate``
+BUILTIN_CONTROLLERS: tuple[str, ...] = tuple(BUILTINS)
 OWN_BEHAVIORS = frozenset({reactive.NAVGROUND_NAME, early_yield.NAVGROUND_NAME})
 
 
