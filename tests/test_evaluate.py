@@ -218,3 +218,24 @@ def test_a_study_without_no_robot_runs_or_a_baseline_gets_them_run_once(tmp_path
     assert again.executed == 0 and again.reused == 16
     with pytest.raises(ConfigError, match="unknown controller 'reactiv'"):
         evaluate("HL", study, tmp_path / "lean", baselines=("reactiv",), show_progress=False)
+
+
+def test_a_study_that_adds_the_evaluated_controller_reuses_its_runs(tmp_path):
+    """`evaluate` and `run` share one batch executor and one batch id: the runs an
+    evaluation made are the study's batches once the study plans them."""
+    from popnavshift.engine.runner import run_study
+    from popnavshift.engine.study import study_from_dict
+
+    part = {"populations": ["mixed", "matched_base"], "controllers": ["robot_orca"],
+            "baseline": False,
+            "episodes": {"scenes": ["head_on"], "widths": [1.8, 4.2], "densities": [0.06],
+                         "robot_speeds": [1.0], "variants": [1]}}
+    config = {"name": "lean", "personas": {"n": 300}, "matched_n": 40, "mappings": ["A"],
+              "parts": {"main": part}}
+    evaluate("HL", study_from_dict(config), tmp_path / "lean", baselines=("robot_orca",),
+             workers=1, show_progress=False)
+    grown = {**config, "parts": {"main": {**part, "controllers": ["robot_orca", "HL"],
+                                          "baseline": True}}}
+    report = run_study(study_from_dict(grown), tmp_path / "lean", workers=1,
+                       show_progress=False)
+    assert report.planned == 12 and report.executed == 0 and report.reused == 12

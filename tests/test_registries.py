@@ -264,3 +264,24 @@ def test_the_contract_check_rejects_a_broken_controller_and_reports_one_that_rai
         "raised RuntimeError in the contract check")
     assert check(CONTROLLERS.make(CLASS_SPEC)) == "passed"
 
+
+
+def test_a_respondent_that_declares_uses_cache_gets_the_study_cache(tmp_path, monkeypatch):
+    """Caching follows the respondent's declared kind, not its name: a newly registered
+    network respondent gets the folder's response cache, the rule respondent none."""
+    from popnavshift.pipeline import RESPONSE_CACHE, respondent_from
+    from popnavshift.responses.llm.openai import OpenAIRespondent
+
+    class LocalModel(OpenAIRespondent):
+        name = "local_model"
+
+    monkeypatch.setattr(RESPONDENTS, "_entries", dict(RESPONDENTS._entries))
+    RESPONDENTS.register("local_model", LocalModel)
+    local = {"base_url": "http://127.0.0.1:9/v1", "api_key_env": None}
+    made = respondent_from("local_model", local, tmp_path)
+    assert isinstance(made, LocalModel) and made.cache_path == tmp_path / RESPONSE_CACHE
+    other = tmp_path / "elsewhere.sqlite"
+    assert respondent_from("local_model", {**local, "cache_path": other},
+                           tmp_path).cache_path == other
+    rule = respondent_from("rule", {}, tmp_path)
+    assert not rule.uses_cache and not hasattr(rule, "cache_path")
