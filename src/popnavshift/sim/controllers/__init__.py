@@ -31,7 +31,8 @@ from typing import Any, Protocol
 import numpy as np
 from navground import core, sim
 
-from .registry import ControllerRegistry
+from . import builtin  # noqa: F401  (registers the built-in controllers)
+from .registry import CONTROLLERS
 
 ROBOT_RADIUS = 0.35  # [m]
 WHEEL_AXIS = 0.5  # [m]
@@ -88,6 +89,5 @@ class LoopDriver(Protocol):
     def step(self, step: int, pose: np.ndarray, peds: np.ndarray, ids: np.ndarray) -> None: ...
 
 
-CONTROLLERS = ControllerRegistry()
-
-from . import builtin  # noqa: E402, F401  (registers the built-in controllers)
+__all__ = ["CONTROLLERS", "ControllerFactory", "LoopDriver", "GOAL_TOLERANCE",
+           "ROBOT_RADIUS", "ROBOT_SENSING_RANGE", "WHEEL_AXIS"]

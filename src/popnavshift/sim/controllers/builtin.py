@@ -21,12 +21,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from functools import partial
+from typing import Any
 
-from . import CONTROLLERS, ControllerFactory, early_yield, reactive
+from . import early_yield, reactive
 from .navground_type import NavgroundType, navground_types
+from .registry import CONTROLLERS
 from .robot_orca import RobotORCA
 
-BUILTINS: dict[str, Callable[..., ControllerFactory]] = {
+BUILTINS: dict[str, Callable[..., Any]] = {
     "reactive": reactive.Reactive,
     "early_yield": early_yield.EarlyYield,
     "robot_orca": RobotORCA,

@@ -97,3 +97,8 @@ class ControllerRegistry(Registry[Any]):
 
 def _is_behavior_class(obj: Any) -> bool:
     return isinstance(obj, type) and issubclass(obj, core.Behavior)
+
+
+#: the controller registry (the built-ins are added by :mod:`.builtin`, which
+#: ``popnavshift.sim.controllers`` imports)
+CONTROLLERS = ControllerRegistry()
