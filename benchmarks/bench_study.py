@@ -27,7 +27,7 @@ from typing import Any
 
 import pandas as pd
 
-from popnavshift.engine.runner import population_settings, run_population_stages, run_study
+from popnavshift.engine.runner import population_settings, run_stages, run_study
 from popnavshift.engine.study import load_study, study_from_dict
 
 TABLES = ("runs", "pedestrians")
@@ -109,7 +109,7 @@ def main() -> None:
     pops = Path(tempfile.mkdtemp(prefix="bench-pops-"))
     folders: list[Path] = []
     try:
-        run_population_stages(pops, population_settings(study), show_progress=False)
+        run_stages(pops, population_settings(study), show_progress=False)
         rows = []
         for w in args.workers:
             row, folder = time_study(study, w, pops, args.executor, args.address)

@@ -270,12 +270,12 @@ def test_adding_a_controller_runs_that_controller_alone(tmp_path, reference):
 def test_edited_controller_code_reruns_that_controllers_runs(tmp_path, reference, monkeypatch):
     import shutil
 
-    from popnavshift.engine import runner
+    from popnavshift.engine import stamps
 
     folder = tmp_path / "edited"
     shutil.copytree(reference, folder)
-    stamp = runner.run_code_stamp
-    monkeypatch.setattr(runner, "run_code_stamp",
+    stamp = stamps.run_code_stamp
+    monkeypatch.setattr(stamps, "run_code_stamp",
                         lambda c: stamp(c) + ("-edited" if c == "reactive" else ""))
     report = run_study(study_from_dict(TINY), folder, workers=1, show_progress=False)
     assert report.executed == 6 * 3 and report.reused == 6 * 3 * 2

@@ -18,7 +18,7 @@ from popnavshift.errors import ConfigError
 from popnavshift.evaluate import card_tables, evaluate, make_card
 from popnavshift.evaluate.card import population_gaps, worst_run
 from popnavshift.tables import check_table
-from test_plugins import EXAMPLE, USER_MODULE, install_example
+from test_registries import EXAMPLE, USER_MODULE, install_example
 
 CLASS_SPEC = "slow_near_peds.controller:SlowNearPeds"
 #: `evaluate` is registered by importing popnavshift.cli.evaluate; importing it here too
@@ -178,23 +178,19 @@ def test_worst_run_prefers_a_collision_then_the_largest_tail():
 
 
 def test_an_edited_controller_module_gets_a_new_stamp(tmp_path, monkeypatch):
-    from popnavshift.plugins import (
-        controller_stamp,
-        make_controller,
-        run_code_stamp,
-        simulator_stamp,
-    )
+    from popnavshift.engine.stamps import controller_stamp, run_code_stamp, simulator_stamp
+    from popnavshift.sim.controllers import CONTROLLERS
 
     module = tmp_path / "stamped_ctrl.py"
     module.write_text("from slow_near_peds.controller import SlowNearPeds\n\n\n"
                       "class Stamped(SlowNearPeds, name='TestStamped'):\n    pass\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.syspath_prepend(str(EXAMPLE))
-    factory = make_controller("stamped_ctrl:Stamped")
+    factory = CONTROLLERS.make("stamped_ctrl:Stamped")
     before = controller_stamp(factory)
-    assert controller_stamp(make_controller("stamped_ctrl:Stamped")) == before
-    assert controller_stamp(make_controller("slow_near_peds.controller:SlowNearPeds",
-                                            {"slow_distance": 3.0})) != before
+    assert controller_stamp(CONTROLLERS.make("stamped_ctrl:Stamped")) == before
+    assert controller_stamp(CONTROLLERS.make("slow_near_peds.controller:SlowNearPeds",
+                                              slow_distance=3.0)) != before
     run_stamp = run_code_stamp("stamped_ctrl:Stamped")  # the simulator's code and its own
     assert run_stamp != run_code_stamp("robot_orca") and run_code_stamp("none") == simulator_stamp()
     module.write_text(module.read_text() + "# edited\n")
@@ -222,3 +218,24 @@ def test_a_study_without_no_robot_runs_or_a_baseline_gets_them_run_once(tmp_path
     assert again.executed == 0 and again.reused == 16
     with pytest.raises(ConfigError, match="unknown controller 'reactiv'"):
         evaluate("HL", study, tmp_path / "lean", baselines=("reactiv",), show_progress=False)
+
+
+def test_a_study_that_adds_the_evaluated_controller_reuses_its_runs(tmp_path):
+    """`evaluate` and `run` share one batch executor and one batch id: the runs an
+    evaluation made are the study's batches once the study plans them."""
+    from popnavshift.engine.runner import run_study
+    from popnavshift.engine.study import study_from_dict
+
+    part = {"populations": ["mixed", "matched_base"], "controllers": ["robot_orca"],
+            "baseline": False,
+            "episodes": {"scenes": ["head_on"], "widths": [1.8, 4.2], "densities": [0.06],
+                         "robot_speeds": [1.0], "variants": [1]}}
+    config = {"name": "lean", "personas": {"n": 300}, "matched_n": 40, "mappings": ["A"],
+              "parts": {"main": part}}
+    evaluate("HL", study_from_dict(config), tmp_path / "lean", baselines=("robot_orca",),
+             workers=1, show_progress=False)
+    grown = {**config, "parts": {"main": {**part, "controllers": ["robot_orca", "HL"],
+                                          "baseline": True}}}
+    report = run_study(study_from_dict(grown), tmp_path / "lean", workers=1,
+                       show_progress=False)
+    assert report.planned == 12 and report.executed == 0 and report.reused == 12

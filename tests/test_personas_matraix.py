@@ -538,7 +538,8 @@ def test_cli_decodes_a_release_laid_out_as_published(tmp_path, recs):
 
 
 def test_a_study_file_passes_the_release_policy_to_the_persona_stage(tmp_path, recs):
-    from popnavshift.engine.runner import _stage_stamps, population_settings
+    from popnavshift.engine.runner import population_settings
+    from popnavshift.engine.stages import stage_stamps
     from popnavshift.engine.study import study_from_dict
     from popnavshift.hashing import digest
     from popnavshift.pipeline import PopulationSettings, run_personas
@@ -553,8 +554,8 @@ def test_a_study_file_passes_the_release_policy_to_the_persona_stage(tmp_path, r
     assert set(table["source"]) == {"wiki", "gss"}
     # the default policy leaves an existing study's stamp as it was
     plain = PopulationSettings()
-    assert _stage_stamps(plain)["personas"] == digest(["personas", "synthetic", 600, 0,
+    assert stage_stamps(plain)["personas"] == digest(["personas", "synthetic", 600, 0,
                                                        "require"])
-    assert _stage_stamps(settings)["personas"] != _stage_stamps(
+    assert stage_stamps(settings)["personas"] != stage_stamps(
         PopulationSettings(source=str(folder), n=10)
     )["personas"]

@@ -4,8 +4,8 @@ import numpy as np
 import pandas as pd
 
 from popnavshift.personas.variants import apply_variant, matched_ids
-from popnavshift.responses.collect import collect_responses, make_respondent
-from popnavshift.responses.respondent import ProbeRequest
+from popnavshift.responses.collect import collect_responses
+from popnavshift.responses.respondent import RESPONDENTS, ProbeRequest
 from popnavshift.responses.rule import RuleRespondent, traits
 from popnavshift.responses.schema import parse_answer
 from popnavshift.tables import check_table
@@ -111,9 +111,9 @@ def test_registry_builds_rule_and_suggests_names():
 
     from popnavshift.errors import UnknownNameError
 
-    assert isinstance(make_respondent("rule", seed=2), RuleRespondent)
+    assert isinstance(RESPONDENTS.make("rule", seed=2), RuleRespondent)
     with pytest.raises(UnknownNameError, match="did you mean 'rule'"):
-        make_respondent("rul")
+        RESPONDENTS.make("rul")
 
 
 def test_answer_all_reports_progress(random_personas):
@@ -130,6 +130,6 @@ def test_a_misspelt_respondent_option_is_a_clear_error():
     from popnavshift.errors import ConfigError
 
     with pytest.raises(ConfigError, match="takes no parameter 'sed'.*did you mean 'seed'"):
-        make_respondent("rule", sed=1)
+        RESPONDENTS.make("rule", sed=1)
     with pytest.raises(ConfigError, match="'modle'.*did you mean 'model'"):
-        make_respondent("openai", modle="x")
+        RESPONDENTS.make("openai", modle="x")

@@ -22,10 +22,10 @@ import pandas as pd
 from .errors import InputError, RespondentError
 from .io import write_json, write_parquet
 from .personas.variants import MATCHED_N_DEFAULT, matched_ids
-from .plugins import make_respondent
 from .progress import progress_bar
 from .responses.collect import collect_responses
 from .responses.probes import PROBE_SET_HASH
+from .responses.respondent import RESPONDENTS, Respondent
 
 
 @dataclass(frozen=True)
@@ -89,11 +89,17 @@ def run_personas(folder: Path, s: PopulationSettings, target: Path | None = None
     return personas
 
 
-def respondent_from(name: str, options: dict[str, Any], folder: Path):
+#: the response cache of respondents that declare ``uses_cache``, in the study folder
+RESPONSE_CACHE = Path("cache") / "llm.sqlite"
+
+
+def respondent_from(name: str, options: dict[str, Any], folder: Path) -> Respondent:
+    """The respondent ``name`` with ``options``; one that declares ``uses_cache`` gets
+    the folder's response cache unless ``options`` name a ``cache_path``."""
     opts = dict(options)
-    if name in ("openai", "gemini"):
-        opts.setdefault("cache_path", folder / "cache" / "llm.sqlite")
-    return make_respondent(name, **opts)
+    if RESPONDENTS.resolve(name).uses_cache:
+        opts.setdefault("cache_path", folder / RESPONSE_CACHE)
+    return RESPONDENTS.make(name, **opts)
 
 
 def run_responses(folder: Path, s: PopulationSettings, show_progress: bool = True) -> pd.DataFrame:

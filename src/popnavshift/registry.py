@@ -1,35 +1,109 @@
 """Registries by name, in the spirit of Gymnasium's ``register``/``make``.
 
-Each pluggable kind (respondents, mappings, controllers, backends) has one
-:class:`Registry`. Entries come from ``register`` calls in this package and from
-the entry-point group ``popnavshift.<kind>s`` of installed packages. A miss raises
-:class:`UnknownNameError` with a did-you-mean.
+Each pluggable kind has one :class:`Registry`, next to its contract:
+
+* controllers — :data:`popnavshift.sim.controllers.CONTROLLERS`;
+* pedestrian backends — :data:`popnavshift.sim.pedestrians.BACKENDS`;
+* respondents — :data:`popnavshift.responses.respondent.RESPONDENTS`;
+* mappings — :data:`popnavshift.profiles.mappings.MAPPINGS`.
+
+``make(spec, **kwargs)`` accepts three kinds of ``spec``:
+
+1. a registered name (``reactive``, ``orca``, ``rule``, ``A``); an entry may be the
+   factory itself or a ``"package.module:Attr"`` string imported on first use;
+2. the name of an entry point in the group ``popnavshift.<kind>s`` of an installed
+   package (looked up again by name on a miss, so a package installed after the
+   first lookup is found);
+3. a Python object ``package.module:Attr``.
+
+A miss raises :class:`UnknownNameError` with a did-you-mean; an object that is not
+of the kind (``requires``/``base``) or a parameter the factory does not take is a
+one-line :class:`ConfigError`.
 """
 
 from __future__ import annotations
 
+import difflib
+import importlib
+import inspect
+import re
 from collections.abc import Callable, Iterator
 from importlib.metadata import entry_points
-from typing import Generic, TypeVar
+from typing import Any, Generic, TypeVar
 
 from .errors import ConfigError, UnknownNameError
 
 T = TypeVar("T")
 
+_DOTTED = r"[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*"
+OBJECT_SPEC = re.compile(rf"^{_DOTTED}:{_DOTTED}$")
+
+
+def is_object_spec(spec: str) -> bool:
+    """``package.module:Attr`` rather than a registered name."""
+    return ":" in spec
+
+
+def load_object(spec: str, kind: str) -> Any:
+    """The object ``package.module:Attr`` (attributes may be dotted).
+
+    Raises :class:`ConfigError` when the spec is malformed, the module does not
+    import (with the import's own message) or has no such attribute.
+    """
+    if not OBJECT_SPEC.match(spec):
+        raise ConfigError(f"{kind} {spec!r} is not a Python object spec",
+                          hint="write it as package.module:Class")
+    module_name, _, attr = spec.partition(":")
+    try:
+        obj: Any = importlib.import_module(module_name)
+    except Exception as exc:  # ImportError, or anything the module raises on import
+        raise ConfigError(f"cannot import {module_name}: {type(exc).__name__}: {exc}",
+                          hint="is the package installed, or its folder on PYTHONPATH?") from exc
+    for part in attr.split("."):
+        if not hasattr(obj, part):
+            close = difflib.get_close_matches(part, [n for n in dir(obj) if not n.startswith("_")])
+            raise ConfigError(f"{module_name} has no attribute {part!r} ({kind} {spec!r})",
+                              hint=f"did you mean {close[0]!r}?" if close else None)
+        obj = getattr(obj, part)
+    return obj
+
+
+def describe_object(obj: Any) -> str:
+    """``class pkg.mod.Name`` for a class, else its type and repr (for messages)."""
+    if isinstance(obj, type):
+        return f"class {obj.__module__}.{obj.__qualname__}"
+    return f"{type(obj).__name__} {obj!r}"
+
+
+def has_methods(obj: Any, methods: tuple[str, ...]) -> bool:
+    return all(callable(getattr(obj, m, None)) for m in methods)
+
 
 class Registry(Generic[T]):
-    """Name → factory. ``kind`` is singular and used in messages ("controller")."""
+    """Name → factory of one kind; ``kind`` is singular and used in messages.
 
-    def __init__(self, kind: str, group: str | None = None) -> None:
+    ``requires`` (method names) and ``base`` (a class) say what an entry must be: a
+    class with those methods, or a subclass of ``base``; ``noun`` and ``hint`` word
+    the error when it is not. ``construct`` False: the entry is the product itself
+    (a mapping function), returned by :meth:`make` without a call.
+    """
+
+    def __init__(self, kind: str, *, group: str | None = None, requires: tuple[str, ...] = (),
+                 base: type | None = None, noun: str | None = None, hint: str | None = None,
+                 construct: bool = True) -> None:
         self.kind = kind
         self.group = group or f"popnavshift.{kind}s"
-        self._entries: dict[str, Callable[..., T]] = {}
+        self.requires, self.base, self.construct = requires, base, construct
+        self.noun = noun or (base.__name__ if base is not None else kind)
+        self.hint = hint
+        self._entries: dict[str, Any] = {}
         self._loaded_entry_points = False
 
-    def register(self, name: str, factory: Callable[..., T] | None = None):
-        """Register ``factory`` under ``name``; usable as a decorator."""
+    def register(self, name: str, factory: Callable[..., T] | str | None = None):
+        """Register ``factory`` (or a ``"package.module:Attr"`` string imported on first
+        use) under ``name``; usable as a decorator."""
 
-        def _add(f: Callable[..., T]) -> Callable[..., T]:
+        def _add(f: Any) -> Any:
             if name in self._entries and self._entries[name] is not f:
                 raise ConfigError(f"{self.kind} {name!r} is already registered")
             self._entries[name] = f
@@ -42,29 +116,60 @@ class Registry(Generic[T]):
             return
         self._loaded_entry_points = True
         for ep in entry_points(group=self.group):
-            if ep.name in self._entries:
-                continue
-            try:
-                self._entries[ep.name] = ep.load()
-            except Exception as exc:  # an outside package failed to import
-                raise ConfigError(
-                    f"{self.kind} entry point {ep.name!r} ({ep.value}) failed to load: {exc}"
-                ) from exc
+            if ep.name not in self._entries:
+                self._entries[ep.name] = self._load_entry_point(ep)
+
+    def _load_entry_point(self, ep: Any) -> Any:
+        try:
+            return ep.load()
+        except Exception as exc:  # an outside package failed to import
+            raise ConfigError(f"{self.kind} entry point {ep.name!r} ({ep.value}) failed "
+                              f"to load: {type(exc).__name__}: {exc}") from exc
 
     def names(self) -> list[str]:
         self._load_entry_points()
         return sorted(self._entries)
 
-    def get(self, name: str) -> Callable[..., T]:
-        """The factory registered as ``name`` (raises UnknownNameError with a hint)."""
+    def get(self, name: str) -> Any:
+        """The entry registered as ``name``, loading an entry point of that name installed
+        since the group was first read (raises UnknownNameError with a hint)."""
         self._load_entry_points()
+        if name not in self._entries:
+            for ep in entry_points(group=self.group, name=name):
+                self._entries[name] = self._load_entry_point(ep)
+                break
         try:
-            return self._entries[name]
+            entry = self._entries[name]
         except KeyError:
             raise UnknownNameError(self.kind, name, self._entries) from None
+        if isinstance(entry, str):  # "package.module:Attr", imported now
+            entry = self._entries[name] = load_object(entry, self.kind)
+        return entry
 
-    def make(self, name: str, **kwargs) -> T:
-        return call_checked(self.kind, name, self.get(name), kwargs)
+    def resolve(self, spec: str) -> Any:
+        """The registered entry, entry point or ``package.module:Attr`` object ``spec``
+        names, checked to be of this kind."""
+        obj = load_object(spec, self.kind) if is_object_spec(spec) else self.get(spec)
+        self.check(spec, obj)
+        return obj
+
+    def check(self, spec: str, obj: Any) -> None:
+        """ConfigError unless ``obj`` is a class of this kind (see the class doc)."""
+        ok = ((not self.requires or (isinstance(obj, type) and has_methods(obj, self.requires)))
+              and (self.base is None or (isinstance(obj, type) and issubclass(obj, self.base))))
+        if not ok:
+            raise ConfigError(f"{self.kind} {spec!r} is {describe_object(obj)}, "
+                              f"not a {self.noun}", hint=self.hint)
+
+    def make(self, spec: str, **kwargs: Any) -> T:
+        """The ``spec``'s product: its factory called with ``kwargs`` (checked against
+        the factory's parameters), or the entry itself for a non-constructing kind."""
+        obj = self.resolve(spec)
+        if not self.construct:
+            if kwargs:
+                raise ConfigError(f"{self.kind} {spec!r} takes no parameters")
+            return obj
+        return call_checked(self.kind, spec, obj, kwargs)
 
     def __contains__(self, name: object) -> bool:
         self._load_entry_points()
@@ -78,9 +183,6 @@ def call_checked(kind: str, name: str, factory: Callable[..., T], kwargs: dict) 
     """``factory(**kwargs)``, but a parameter the factory does not take is a
     :class:`ConfigError` naming it and the accepted ones (e.g. a typo in a study file),
     not a ``TypeError`` traceback."""
-    import difflib
-    import inspect
-
     try:
         signature = inspect.signature(factory)
     except (TypeError, ValueError):  # builtins without a signature: just call

@@ -43,8 +43,10 @@ def evaluate(
         ),
     ] = None,
     baselines: Annotated[
-        str, typer.Option(help="Comma-separated controllers to compare with.")
-    ] = "reactive,early_yield,robot_orca",
+        str | None,
+        typer.Option(help="Comma-separated controllers to compare with "
+                     "(default: the built-in controllers)."),
+    ] = None,
     param: ParamOpt = None,
     workers: Annotated[
         int, typer.Option("--workers", "-w", min=1, max=MAX_WORKERS, help="Worker processes.")
@@ -68,9 +70,9 @@ def evaluate(
 
     Example: popnavshift evaluate my_pkg.controller:MyBehavior --study quick
     """
+    from ..evaluate import BASELINES, make_card
     from ..evaluate import evaluate as run_evaluation
-    from ..evaluate import make_card
-    from ..plugins import controller_id
+    from ..sim.controllers.registry import controller_id
     from . import folder
 
     check_workers(workers)
@@ -78,7 +80,8 @@ def evaluate(
     base = folder(study_dir or default_dir)
     params = parse_params(param)
     identity = controller_id(controller, params) if params else controller
-    names = tuple(b.strip() for b in baselines.split(",") if b.strip())
+    names = BASELINES if baselines is None else tuple(
+        b.strip() for b in baselines.split(",") if b.strip())
     ev = run_evaluation(identity, s, base, out, baselines=names, workers=workers,
                         run_check=check,
                         log=lambda msg: console.print(say(msg), highlight=False, soft_wrap=True))

@@ -60,38 +60,45 @@ def parse_params(items: list[str] | None) -> dict[str, Any]:
     return out
 
 
-def _run_inputs(folder: Path, episode: str, population: str, mapping: str, seed: int):
-    from ..engine.runner import population_settings, run_population_stages
+def _rebuild(folder: Path, episode: str, population: str, mapping: str, controller: str,
+             backend: str, seed: int, record: bool = False):
+    """Simulate one run of the study in ``folder`` (its populations are built with the
+    default settings if missing) by :func:`popnavshift.engine.rebuild.rebuild_run`."""
+    from ..engine.rebuild import population_members, rebuild_run
+    from ..engine.runner import population_settings, run_stages
     from ..engine.study import Study
-    from ..episodes.specs import assign_slots, get_episode
+    from ..episodes.specs import get_episode
+    from ..errors import InputError, UnknownNameError
     from ..pipeline import read_table
     from ..populations.build import POPULATIONS
 
-    spec = get_episode(episode, seed=seed)
+    get_episode(episode, seed=seed)  # an unknown episode is the first error
     if population not in POPULATIONS:
-        from ..errors import UnknownNameError
-
         raise UnknownNameError("population", population, POPULATIONS)
     if not (folder / "populations.parquet").exists():
         console.print(f"building the default populations in {say(folder)} …")
         folder.mkdir(parents=True, exist_ok=True)
-        run_population_stages(folder, population_settings(Study(name="default", parts={})), True)
+        run_stages(folder, population_settings(Study(name="default", parts={})), True)
     pops = read_table(folder / "populations.parquet", "populations")
-    members = pops[(pops["population"] == population) & (pops["mapping"] == mapping)]
-    if members.empty:
+    try:
+        population_members(pops, mapping, population)
+    except InputError:
         raise ConfigError(
             f"{folder}/populations.parquet has no {population!r} for mapping {mapping}"
-        )
-    return spec, assign_slots(spec, members.sort_values("persona_id"))
+        ) from None
+    key = {"episode": episode, "population": population, "controller": controller,
+           "backend": backend, "mapping": mapping}
+    return rebuild_run(key, pops, seed, record=record)
 
 
-def _controller(name: str, params: dict[str, Any]):
+def _controller(name: str, params: dict[str, Any]) -> str:
+    """The controller id of ``name`` with ``params`` (``none``: the no-robot baseline)."""
+    from ..sim.controllers.registry import controller_id
+
     if name == "none":
         if params:
             raise ConfigError("--param makes no sense with --controller none")
-        return None
-    from ..plugins import controller_id
-
+        return name
     return controller_id(name, params)  # names, entry points, package.module:Class
 
 
@@ -149,10 +156,8 @@ def simulate(
 
     Example: popnavshift simulate -e bottleneck-w1.8-d0.2-s1.0-v1 -p matched_deadline -c reactive
     """
-    from ..sim.run import simulate as run_one
-
-    spec, slots = _run_inputs(study_dir, episode, population, mapping, seed)
-    result = run_one(spec, slots, _controller(controller, parse_params(param)), backend)
+    ident = _controller(controller, parse_params(param))
+    result = _rebuild(study_dir, episode, population, mapping, ident, backend, seed)
     if json_out:
         typer.echo(
             json.dumps(
@@ -195,13 +200,10 @@ def replay(
 
     Pedestrians are coloured by state: walking, reacting, yielding, detouring.
     """
-    from ..sim.run import simulate as run_one
     from ..viz.replay import write_replay
 
-    spec, slots = _run_inputs(study_dir, episode, population, mapping, seed)
-    result = run_one(
-        spec, slots, _controller(controller, parse_params(param)), backend, record=True
-    )
+    ident = _controller(controller, parse_params(param))
+    result = _rebuild(study_dir, episode, population, mapping, ident, backend, seed, record=True)
     title = f"{episode} · {population} · {controller} · {backend} → {result.run['outcome']}"
     assert result.trajectory is not None
     paths = write_replay(result.trajectory, result.run, out, title)

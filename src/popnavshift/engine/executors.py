@@ -3,18 +3,22 @@
 Both yield ``(batch id, runs, pedestrians, seconds)`` as batches finish, keep at
 most ``2 × workers`` batches in flight (bounded memory), and produce identical
 tables: the simulation of a batch depends only on the batch and the context.
-Processes, not threads: Python behaviours hold the GIL.
+Processes, not threads: Python behaviours hold the GIL. :func:`execute` is the
+one batch executor of ``popnavshift run`` and ``popnavshift evaluate``: it runs
+the batches and stores each one's shards as it finishes.
 """
 
 from __future__ import annotations
 
 import multiprocessing as mp
 import os
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 
-from ..errors import ConfigError
+from ..errors import ConfigError, UnknownNameError
+from ..progress import run_progress
 from .plan import Batch
+from .store import RunStore
 from .worker import Context, init_worker, run_batch
 
 Result = tuple[str, object, object, float]
@@ -113,11 +117,25 @@ def _run_batch_ray(batch: Batch, context_ref: list) -> Result:
     return run_batch(batch, _RAY_CONTEXT[1])
 
 
-def executor(name: str):
-    if name == "local":
-        return run_local
-    if name == "ray":
-        return run_ray
-    from ..errors import UnknownNameError
+EXECUTORS: dict[str, Callable[..., Iterator[Result]]] = {"local": run_local, "ray": run_ray}
 
-    raise UnknownNameError("executor", name, ("local", "ray"))
+
+def execute(todo: Sequence[Batch], store: RunStore, context: Context, workers: int, *,
+            executor_name: str = "local", address: str | None = None,
+            show_progress: bool = True) -> int:
+    """Run the ``todo`` batches with the executor ``executor_name`` (``address``: a Ray
+    cluster), writing each batch's shards to ``store`` as it finishes (an interrupted
+    call loses only the batches in flight); returns the number of runs executed."""
+    if executor_name not in EXECUTORS:
+        raise UnknownNameError("executor", executor_name, EXECUTORS)
+    kwargs = {"address": address} if executor_name == "ray" else {}
+    by_id = {b.id: b for b in todo}
+    executed = 0
+    with run_progress(sum(len(b.runs) for b in todo), show_progress) as advance:
+        for batch_id, runs, peds, _seconds in EXECUTORS[executor_name](todo, context, workers,
+                                                                        **kwargs):
+            batch = by_id[batch_id]
+            store.write_batch(batch, runs, peds)
+            executed += len(batch.runs)
+            advance(len(batch.runs))
+    return executed

@@ -110,7 +110,7 @@ def batches(runs: Iterable[Run], inputs: str = "",
             code: dict[str, str] | None = None) -> list[Batch]:
     """Group runs by (episode, backend, mapping), keeping plan order; ``inputs`` is the
     stamp of the upstream tables the runs are built from, ``code`` the code stamp of
-    each controller (:func:`popnavshift.plugins.run_code_stamp`): a batch's id covers
+    each controller (:func:`popnavshift.engine.stamps.run_code_stamp`): a batch's id covers
     the stamps of the controllers it runs, so edited code never reuses a shard."""
     groups: dict[tuple[str, str, str], list[Run]] = {}
     for r in runs:

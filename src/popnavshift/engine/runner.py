@@ -1,9 +1,10 @@
 """Run a study: every stage not already done, then the runs, then compaction.
 
-Stages are skipped when their output exists and its *stamp* (a hash of the
-settings that produced it, chained through upstream stamps) matches, so a
-changed setting reruns exactly the stages downstream of it. Runs are resumed
-per batch (see :mod:`.store`).
+Stages (:data:`.stages.STAGES`) are skipped when their output exists and its
+*stamp* (a hash of the settings that produced it, chained through upstream
+stamps) matches, so a changed setting reruns exactly the stages downstream of
+it. Runs are resumed per batch (see :mod:`.store`) and run by the batch executor
+(:func:`.executors.execute`).
 """
 
 from __future__ import annotations
@@ -18,36 +19,22 @@ from typing import Any
 import pandas as pd
 
 from .. import __version__
+from ..episodes.specs import all_episodes
 from ..errors import ConfigError
-from ..hashing import content_digest, digest
-from ..io import write_json, write_parquet
-from ..pipeline import (
-    PopulationSettings,
-    read_table,
-    run_personas,
-    run_populations,
-    run_profiles,
-    run_responses,
-)
-from ..plugins import run_code_stamp
+from ..io import write_json
+from ..pipeline import PopulationSettings, read_table
 from ..populations.perturb import ProfileSet
 from ..progress import console
 from ..responses.probes import PROBE_SET_HASH
 from ..tables import RUN_KEY
-from .executors import executor
+from .executors import execute
 from .plan import batches, count_runs, plan_study
+from .stages import STAGES, batch_inputs, stage_stamps
+from .stamps import code_stamps
 from .store import RunStore, read_stamps, readable_parquet
 from .study import Study
 from .validate import validate_study
 from .worker import Context
-
-STAGES = ("personas", "responses", "profiles", "populations")
-STAGE_FILES = {
-    "personas": "personas.parquet",
-    "responses": "responses.parquet",
-    "profiles": "profiles.parquet",
-    "populations": "populations.parquet",
-}
 
 
 @dataclass
@@ -90,55 +77,21 @@ def population_settings(study: Study) -> PopulationSettings:
     )
 
 
-def _stage_stamps(s: PopulationSettings) -> dict[str, str]:
-    stamps: dict[str, str] = {}
-    source: list[Any] = ["personas", s.source, s.n, s.seed, s.missing]
-    if s.source != "synthetic" and Path(s.source).exists():
-        source.append(content_digest(s.source))  # an edited file reruns its stage
-    release = [s.codebook, s.sources, s.verify_checksums]
-    if release != [None, None, True]:  # release options only when set: old stamps stay valid
-        source.append(release)
-    stamps["personas"] = digest(source)
-    stamps["responses"] = digest(
-        [
-            "responses",
-            stamps["personas"],
-            s.respondent,
-            s.respondent_options,
-            s.matched_n,
-            PROBE_SET_HASH,
-            s.respondent2,
-            s.respondent2_options,
-        ]
-    )
-    stamps["profiles"] = digest(["profiles", stamps["responses"], list(s.mappings), s.structure])
-    stamps["populations"] = digest(["populations", stamps["profiles"], s.matched_n]
-                                   + ([list(s.nulls), list(s.null_mappings)] if s.nulls else []))
-    return stamps
-
-
-def run_population_stages(folder: Path, s: PopulationSettings, show_progress: bool) -> list[str]:
-    """Run the population pipeline stages whose stamp changed; return their names."""
-    stamp_file = folder / "stages.json"
+def run_stages(folder: Path, s: PopulationSettings, show_progress: bool) -> list[str]:
+    """Run the stages of :data:`.stages.STAGES` whose stamp changed or whose table is
+    damaged, and every stage after one that ran; return the names of those run."""
     done = read_stamps(folder)
-    want = _stage_stamps(s)
+    want = stage_stamps(s)
     ran: list[str] = []
     for stage in STAGES:
-        intact = readable_parquet(folder / STAGE_FILES[stage])  # a damaged output is redone
-        if done.get(stage) == want[stage] and intact and not ran:
+        intact = readable_parquet(folder / stage.table)  # a damaged output is redone
+        if done.get(stage.name) == want[stage.name] and intact and stage.after not in ran:
             continue
-        with console.status(f"stage {stage}…"):
-            if stage == "personas":
-                run_personas(folder, s)
-            elif stage == "responses":
-                run_responses(folder, s, show_progress)
-            elif stage == "profiles":
-                run_profiles(folder, s)
-            else:
-                run_populations(folder, s)
-        done[stage] = want[stage]
-        write_json(done, stamp_file)
-        ran.append(stage)
+        with console.status(f"stage {stage.name}…"):
+            stage.run(folder, s, show_progress)
+        done[stage.name] = want[stage.name]
+        write_json(done, folder / "stages.json")
+        ran.append(stage.name)
     return ran
 
 
@@ -150,25 +103,15 @@ def run_study(
     address: str | None = None,
     show_progress: bool = True,
 ) -> RunReport:
-    from ..episodes.specs import all_episodes, episodes_table
-
-    validate_study(study, all_episodes(seed=study.seed))  # before any stage runs
+    episodes = all_episodes(seed=study.seed)
+    validate_study(study, episodes)  # before any stage runs
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     report = RunReport(folder)
     started = time.perf_counter()
     settings = population_settings(study)
-    report.stages_run = run_population_stages(folder, settings, show_progress)
+    report.stages_run = run_stages(folder, settings, show_progress)
     populations = read_table(folder / "populations.parquet", "populations")
-
-    episodes = all_episodes(seed=study.seed)
-    stamps = read_stamps(folder)
-    episodes_stamp = digest(["episodes", study.seed])
-    episodes_path = folder / "episodes.parquet"
-    if stamps.get("episodes") != episodes_stamp or not readable_parquet(episodes_path):
-        write_parquet(episodes_table(episodes), folder / "episodes.parquet")
-        stamps["episodes"] = episodes_stamp
-        write_json(stamps, folder / "stages.json")
     runs = plan_study(study, episodes)
     built = set(populations["mapping"])
     missing = sorted({r.mapping for r in runs} - built)
@@ -178,8 +121,8 @@ def run_study(
             f"built; available: {', '.join(sorted(built))}",
             hint="robustness labels need `respondent2` or a structure part",
         )
-    inputs = digest([stamps["populations"], episodes_stamp])
-    code = {c: run_code_stamp(c) for c in sorted({r.controller for r in runs})}
+    inputs = batch_inputs(read_stamps(folder))
+    code = code_stamps(r.controller for r in runs)
     store = RunStore(folder)
     carried = store.carried(runs, inputs, code)  # in the tables already: not run again
     all_batches = batches([r for r in runs if r.key not in carried], inputs, code)
@@ -191,19 +134,10 @@ def run_study(
         report.seconds = time.perf_counter() - started
         return report
 
-    context = Context(populations=populations, episode_seed=study.seed)
-    run_fn = executor(executor_name)
-    kwargs = {"address": address} if executor_name == "ray" else {}
-    n_todo = sum(len(b.runs) for b in todo)
     sim_started = time.perf_counter()
-    from ..progress import run_progress
-
-    with run_progress(n_todo, show_progress) as advance:
-        by_id = {b.id: b for b in todo}
-        for batch_id, runs_df, peds_df, _secs in run_fn(todo, context, workers, **kwargs):
-            store.write_batch(by_id[batch_id], runs_df, peds_df)
-            report.executed += len(by_id[batch_id].runs)
-            advance(len(by_id[batch_id].runs))
+    report.executed = execute(todo, store, Context(populations, study.seed), workers,
+                              executor_name=executor_name, address=address,
+                              show_progress=show_progress)
     sim_seconds = time.perf_counter() - sim_started
     runs_table, peds_table = store.compact(all_batches, runs, carried, inputs, code)
     report.compacted = True

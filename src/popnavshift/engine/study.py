@@ -27,9 +27,10 @@ from pydantic import (
 
 from ..errors import ConfigError, UnknownNameError
 from ..hashing import digest
-from ..plugins import controller_id
 from ..populations.build import POPULATIONS, SPLIT_HALVES, is_known
 from ..populations.nulls import null_populations
+from ..sim.controllers.builtin import BUILTIN_CONTROLLERS
+from ..sim.controllers.registry import controller_id
 
 MATCHED_PAIR: tuple[str, str] = ("matched_base", "matched_deadline")
 SCENES = ("sidewalk", "head_on", "crossing", "bottleneck", "obstruction")
@@ -87,7 +88,7 @@ class Part(Strict):
     episodes: EpisodeSelection = EpisodeSelection()
     #: controller ids: a registered name, an entry point or ``package.module:Class``;
     #: in YAML also ``{name: HRVO, params: {...}}``, stored as ``HRVO{"...":...}``
-    controllers: tuple[str, ...] = ("reactive", "early_yield", "robot_orca")
+    controllers: tuple[str, ...] = BUILTIN_CONTROLLERS
     backends: tuple[str, ...] = ("orca",)
     #: profile set(s): a mapping A–D, or a robustness label such as A~shuffle
     mapping: str | tuple[str, ...] = "A"
@@ -114,8 +115,9 @@ class Part(Strict):
     @field_validator("controllers", mode="before")
     @classmethod
     def _controller_ids(cls, v):
-        """``{name, params}`` entries → controller ids (:func:`popnavshift.plugins.controller_id`),
-        so parameters enter the run key and two parameterisations never share a run."""
+        """``{name, params}`` entries → controller ids
+        (:func:`popnavshift.sim.controllers.registry.controller_id`), so parameters
+        enter the run key and two parameterisations never share a run."""
         if not isinstance(v, list | tuple):
             return v
         return tuple(_controller_entry(c) for c in v)

@@ -62,13 +62,14 @@ def check_grid_values(selection: EpisodeSelection, episodes: Sequence, where: st
 
 
 def _check_names(study: Study) -> None:
-    from ..plugins import make_backend, make_controller
+    from ..sim.controllers import CONTROLLERS
+    from ..sim.backends import BACKENDS
 
     controllers = {c for part in study.parts.values() for c in part.controllers}
     for controller in sorted(controllers):
-        make_controller(controller)
+        CONTROLLERS.make(controller)
     for backend in sorted({b for part in study.parts.values() for b in part.backends}):
-        make_backend(backend)
+        BACKENDS.make(backend)
     known = known_mappings(study)
     for name, part in study.parts.items():
         for mapping in part.mappings:
@@ -97,9 +98,9 @@ def known_mappings(study: Study) -> list[str]:
 
 def _check_respondent(name: str, options: dict[str, Any]) -> None:
     """Build the respondent (no call is made) and check its settings."""
-    from ..plugins import make_respondent
+    from ..responses.respondent import RESPONDENTS
 
-    respondent = make_respondent(name, **options)
+    respondent = RESPONDENTS.make(name, **options)
     validate = getattr(respondent, "validate", None)
     if callable(validate):
         validate()

@@ -21,8 +21,13 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..tables import PARAMS
-from .plan import NO_ROBOT, Batch
+from ..episodes.specs import get_episode, seed_set_of
+from ..populations.perturb import ProfileSet
+from ..sim.run import ControllerError, failed_result, pedestrian_table, simulate
+from ..sim.slots import SlotProfiles, profiles_of_members
+from ..tables import NO_ROBOT
+from .plan import Batch
+from .rebuild import member_arrays
 
 
 @dataclass(frozen=True)
@@ -73,19 +78,15 @@ def exit_with_parent(parent_pid: int) -> None:
 
 def _members(ctx: Context, mapping: str, population: str) -> tuple[np.ndarray, list[str]]:
     """One population's members sorted by persona id, as the (m, 7) profile array in
-    PARAMS order and their persona ids; cached per worker and context (the slots of a
-    run are then rows of these arrays, see :func:`popnavshift.sim.slots.profiles_of_members`)."""
+    PARAMS order and their persona ids (:func:`.rebuild.member_arrays`); cached per
+    worker and context (the slots of a run are then rows of these arrays, see
+    :func:`popnavshift.sim.slots.profiles_of_members`)."""
     global _MEMBERS
     if _MEMBERS is None or _MEMBERS[0] is not ctx:
         groups = ctx.populations.groupby(["mapping", "population"], sort=False)
-        _MEMBERS = (ctx, {k: _arrays(g.sort_values("persona_id", kind="stable"))
+        _MEMBERS = (ctx, {k: member_arrays(g.sort_values("persona_id", kind="stable"))
                           for k, g in groups})
     return _MEMBERS[1][(mapping, population)]
-
-
-def _arrays(members: pd.DataFrame) -> tuple[np.ndarray, list[str]]:
-    values = np.column_stack([members[p].to_numpy(dtype=np.float64) for p in PARAMS])
-    return values, [str(x) for x in members["persona_id"].tolist()]
 
 
 _MEMBERS: tuple[Context, dict] | None = None
@@ -95,11 +96,6 @@ def run_batch(
     batch: Batch, context: Context | None = None
 ) -> tuple[str, pd.DataFrame, pd.DataFrame, float]:
     """Simulate every run of ``batch``; returns (batch id, runs, pedestrians, seconds)."""
-    from ..episodes.specs import get_episode, seed_set_of
-    from ..populations.perturb import ProfileSet
-    from ..sim.run import ControllerError, failed_result, pedestrian_table, simulate
-    from ..sim.slots import SlotProfiles, profiles_of_members
-
     ctx = context or _CONTEXT
     assert ctx is not None, "worker used before init_worker"
     started = time.perf_counter()

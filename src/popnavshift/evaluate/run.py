@@ -2,18 +2,20 @@
 
 ``evaluate(controller, study, base_folder)``:
 
-1. builds the controller (:func:`popnavshift.plugins.make_controller`: a clear
-   :class:`ConfigError` for a class that does not import or is not a navground
-   Behavior) and runs the contract checker on it;
+1. builds the controller (``CONTROLLERS.make``, :mod:`popnavshift.sim.controllers`:
+   a clear :class:`ConfigError` for a class that does not import or is not a
+   navground Behavior) and runs the contract checker on it;
 2. runs the baseline study in ``base_folder`` (``popnavshift run``'s folder),
    which reuses every finished baseline and no-robot run;
 3. plans the controller's runs on the study's evaluated part (``main``) as batches
-   of their own: a batch id hashes its run keys, so these never change the
-   baseline batches; it also hashes the code they run (the controller's module and
-   the simulator, :func:`popnavshift.plugins.run_code_stamp`), so edited code is run
-   again. Their shards live in the baseline folder's
-   store (reused by any later evaluation of the same controller and code); the
-   compacted tables go to ``out``;
+   of their own, with the batch ids of ``popnavshift run``
+   (:func:`popnavshift.engine.plan.batches`): a batch id hashes its run keys, so
+   these never change the baseline batches, the stamp of the populations and
+   episodes, and the code they run (the controller's module and the simulator,
+   :func:`popnavshift.engine.stamps.run_code_stamp`), so edited code is run again.
+   The same batch executor runs them (:func:`popnavshift.engine.executors.execute`).
+   Their shards live in the baseline folder's store (reused by any later
+   evaluation of the same controller and code); the compacted tables go to ``out``;
 4. returns the evaluated part's runs and pedestrians, baselines + controller +
    no-robot, for the card (:mod:`.card`).
 
@@ -23,7 +25,6 @@ A run in which the controller raises is recorded as ``controller_error`` (see
 
 from __future__ import annotations
 
-import json
 import re
 import time
 from collections.abc import Callable, Sequence
@@ -34,22 +35,27 @@ from typing import Any
 import pandas as pd
 
 from .. import __version__
-from ..engine.executors import executor
-from ..engine.plan import NO_ROBOT, Batch, batches, plan_study
+from ..engine.executors import execute
+from ..engine.plan import batches, plan_study
+from ..engine.rebuild import rebuild_run
 from ..engine.runner import run_study
-from ..engine.store import RunStore
+from ..engine.stages import batch_inputs
+from ..engine.stamps import code_stamps
+from ..engine.store import RunStore, read_stamps
 from ..engine.study import Study
 from ..engine.worker import Context
+from ..episodes.specs import all_episodes
 from ..errors import ConfigError, InputError
 from ..hashing import digest
 from ..io import write_json
 from ..pipeline import read_table
-from ..plugins import controller_id, make_controller, parse_controller_id, run_code_stamp
-from ..progress import run_progress
-from ..tables import RUN_KEY
+from ..sim.controllers import CONTROLLERS
+from ..sim.controllers.builtin import BUILTIN_CONTROLLERS
+from ..sim.controllers.registry import controller_id, parse_controller_id
+from ..tables import NO_ROBOT, RUN_KEY
 from .verdict import SAFETY_THRESHOLD
 
-BASELINES: tuple[str, ...] = ("reactive", "early_yield", "robot_orca")
+BASELINES: tuple[str, ...] = BUILTIN_CONTROLLERS
 Tables = tuple[pd.DataFrame, pd.DataFrame]  # runs, pedestrians
 EVALUATE_DIR = "evaluate"
 Log = Callable[[str], None]
@@ -129,7 +135,7 @@ def evaluate(
     identity = controller_id(*parse_controller_id(controller))
     if identity == NO_ROBOT:
         raise ConfigError("controller 'none' is the no-robot baseline; name a controller")
-    factory = make_controller(identity)
+    factory = CONTROLLERS.make(identity)
     status = check(factory) if run_check else "skipped"
     say(f"controller {identity}: contract check {status}")
     part_name = "main" if "main" in study.parts else next(iter(study.parts))
@@ -138,7 +144,7 @@ def evaluate(
     if not base_ids:
         raise ConfigError("evaluate needs at least one baseline other than the controller")
     for b in base_ids:  # fail before anything runs
-        make_controller(b)
+        CONTROLLERS.make(b)
     base_folder = Path(base_folder)
     out = Path(out) if out is not None else base_folder / EVALUATE_DIR / slug(identity)
 
@@ -169,18 +175,14 @@ def _run_extra(study: Study, part_name: str, controllers: tuple[str, ...], base_
     no_robot = not study.parts[part_name].baseline
     if not controllers and not no_robot:
         return None, 0, 0
-    from ..episodes.specs import all_episodes
-
     part = study.parts[part_name].model_copy(update={"controllers": controllers,
                                                      "baseline": no_robot})
     runs = plan_study(study.model_copy(update={"parts": {part_name: part}}),
                       all_episodes(seed=study.seed))
-    stamps = json.loads((base_folder / "stages.json").read_text())
-    # the runner's stamp of the batches' inputs (a changed population or episode draw
-    # gives new batch ids), plus the code they run: an edited controller keeps its
-    # name, and its old runs (or any run of an older simulator) must not be reused
-    code = [run_code_stamp(c) for c in (NO_ROBOT, *controllers)]
-    all_batches = batches(runs, inputs=digest([stamps["populations"], stamps["episodes"], code]))
+    # the runner's batch ids: a changed population or episode draw, an edited
+    # controller (which keeps its name) or simulator gives new ones
+    all_batches = batches(runs, batch_inputs(read_stamps(base_folder)),
+                          code_stamps(r.controller for r in runs))
     store = _SharedShards(base_folder, out)
     todo = [b for b in all_batches if not store.is_done(b)]
     n_todo = sum(len(b.runs) for b in todo)
@@ -188,28 +190,17 @@ def _run_extra(study: Study, part_name: str, controllers: tuple[str, ...], base_
     say(f"{', '.join((NO_ROBOT,) * no_robot + controllers)}: {reused:,} runs reused, "
         f"{n_todo:,} to run")
     if todo:
-        _execute(todo, store, study, base_folder, workers, show_progress)
+        populations = read_table(base_folder / "populations.parquet", "populations")
+        execute(todo, store, Context(populations, study.seed), workers,
+                show_progress=show_progress)
     out.mkdir(parents=True, exist_ok=True)
     return store.compact(all_batches), reused, n_todo
-
-
-def _execute(todo: list[Batch], store: RunStore, study: Study, base_folder: Path,
-             workers: int, show_progress: bool) -> None:
-    populations = read_table(base_folder / "populations.parquet", "populations")
-    context = Context(populations=populations, episode_seed=study.seed)
-    by_id = {b.id: b for b in todo}
-    with run_progress(sum(len(b.runs) for b in todo), show_progress) as advance:
-        for batch_id, runs_df, peds_df, _secs in executor("local")(todo, context, workers):
-            store.write_batch(by_id[batch_id], runs_df, peds_df)
-            advance(len(by_id[batch_id].runs))
 
 
 def _tables(study: Study, part_name: str, controllers: tuple[str, ...], base_folder: Path,
             own: Tables | None) -> Tables:
     """Runs and pedestrians of the evaluated part: its planned keys, taken from the
     baseline study's tables and the controllers' own."""
-    from ..episodes.specs import all_episodes
-
     part = study.parts[part_name].model_copy(update={"controllers": controllers,
                                                      "baseline": True})
     planned = plan_study(study.model_copy(update={"parts": {part_name: part}}),
@@ -246,15 +237,8 @@ def _write_manifest(ev: Evaluation) -> None:
 
 def replay(ev: Evaluation, key: dict[str, Any]) -> tuple[dict, dict]:
     """Simulate one run of the evaluation again, recording it: (trajectory, run row)."""
-    from ..episodes.specs import assign_slots, get_episode
-    from ..sim.run import simulate
-
     populations = read_table(ev.base_folder / "populations.parquet", "populations")
-    spec = get_episode(key["episode"], seed=ev.study.seed)
-    members = populations[(populations["mapping"] == key["mapping"])
-                          & (populations["population"] == key["population"])]
-    result = simulate(spec, assign_slots(spec, members.sort_values("persona_id")),
-                      key["controller"], key["backend"], record=True)
+    result = rebuild_run(key, populations, ev.study.seed, record=True)
     assert result.trajectory is not None
     return result.trajectory, result.run
 

@@ -33,6 +33,8 @@ and ``tables.Z_COLUMNS`` (z_v = ``z_speed``, …), see docs/method.md §4.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pandas as pd
 
@@ -70,8 +72,8 @@ MOTOR_NEEDS_CAP = 1.00
 
 Q = dict[str, np.ndarray]
 MappingResult = tuple[dict[str, np.ndarray], np.ndarray]  # (z per control, caution score)
-#: name → function(q) -> (z, C); the registry's "factory" is the mapping itself.
-MAPPINGS: Registry[MappingResult] = Registry("mapping")
+#: name → function(q) -> (z, C); ``MAPPINGS.make(name)`` returns the function itself.
+MAPPINGS: Registry[Callable[[Q], MappingResult]] = Registry("mapping", construct=False)
 
 def _q(responses: pd.DataFrame) -> Q:
     q = {k: responses[f"q_{k}"].to_numpy(float) for k in BLOCK_ITEMS}
@@ -163,7 +165,7 @@ def build_profiles(
     ``personas`` supplies the mobility fields for the speed caps (matched by
     persona_id; variants share the persona's mobility).
     """
-    fn = MAPPINGS.get(mapping)
+    fn = MAPPINGS.make(mapping)
     check_table(responses, "responses")
     mob = personas.set_index("persona_id")[["health_mobility", "accessibility_needs"]]
     missing = sorted(set(responses["persona_id"]) - set(mob.index))

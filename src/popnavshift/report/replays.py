@@ -114,14 +114,9 @@ def run_differences(stored_run: pd.Series, stored_peds: pd.DataFrame, result) ->
 
 def resimulate(key: dict[str, str], populations: pd.DataFrame, seed: int, *, record: bool = True):
     """Simulate one stored run again from the episode id, the population table and the seed."""
-    from ..episodes.specs import assign_slots, get_episode
-    from ..sim.run import simulate
+    from ..engine.rebuild import rebuild_run
 
-    spec = get_episode(key["episode"], seed=seed)
-    pops = populations[(populations["mapping"] == key["mapping"])
-                       & (populations["population"] == key["population"])]
-    slots = assign_slots(spec, pops.sort_values("persona_id"))
-    return simulate(spec, slots, key["controller"], key["backend"], record=record)
+    return rebuild_run(key, populations, seed, record=record)
 
 
 def _row(df: pd.DataFrame, key: dict[str, str]) -> pd.DataFrame:

@@ -7,7 +7,6 @@ separate table with the reason — never dropped silently, never replaced.
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Sequence
 from typing import Any
 
@@ -16,35 +15,8 @@ import pandas as pd
 from ..personas.variants import apply_variant
 from ..tables import check_table
 from .probes import PROBE_SET_HASH
-from .respondent import RESPONDENTS, ProbeRequest, Progress, Respondent
+from .respondent import ProbeRequest, Progress, Respondent
 from .schema import answer_to_row
-
-
-def _lazy(module: str, attr: str):
-    def factory(**kwargs: Any) -> Respondent:
-        from ..registry import call_checked
-
-        cls = getattr(importlib.import_module(module), attr)
-        return call_checked("respondent", cls.name, cls, kwargs)
-
-    return factory
-
-
-def _register_builtins() -> None:
-    from . import rule  # noqa: F401  (registers "rule")
-
-    for name, module, attr in (
-        ("openai", "popnavshift.responses.llm.openai", "OpenAIRespondent"),
-        ("gemini", "popnavshift.responses.llm.gemini", "GeminiRespondent"),
-    ):
-        if name not in RESPONDENTS:
-            RESPONDENTS.register(name, _lazy(module, attr))
-
-
-def make_respondent(name: str, **kwargs: Any) -> Respondent:
-    """Build a respondent by registered name (``rule``, ``openai``, ``gemini``, plug-ins)."""
-    _register_builtins()
-    return RESPONDENTS.make(name, **kwargs)
 
 
 def probe_requests(personas: pd.DataFrame, matched: Sequence[str]) -> list[ProbeRequest]:

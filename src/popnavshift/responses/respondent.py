@@ -1,4 +1,4 @@
-"""The respondent contract and registry.
+"""The respondent contract and registry (:data:`RESPONDENTS`).
 
 A respondent answers the probe battery for many personas at once
 (``answer_all``) so that network respondents can run requests concurrently.
@@ -11,7 +11,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 from ..registry import Registry
 
@@ -45,9 +45,15 @@ Progress = Callable[[int], None]
 
 
 class Respondent(ABC):
-    """Base class. Subclasses set ``name`` and implement ``answer_all``."""
+    """Base class. Subclasses set ``name`` and implement ``answer_all``.
+
+    ``uses_cache`` True declares a respondent that answers from a network model and
+    takes a ``cache_path``: the population pipeline then gives it the study folder's
+    response cache (``cache/llm.sqlite``) unless the options name another.
+    """
 
     name: str = "respondent"
+    uses_cache: ClassVar[bool] = False
 
     @property
     def model(self) -> str:
@@ -65,4 +71,10 @@ class Respondent(ABC):
         """Answer every request, in order; call ``progress(n)`` as records finish."""
 
 
-RESPONDENTS: Registry[Respondent] = Registry("respondent")
+RESPONDENTS: Registry[Respondent] = Registry(
+    "respondent", base=Respondent, hint="subclass popnavshift.responses.respondent.Respondent")
+# The built-ins, by "module:Class": imported on first use, so an offline study never
+# imports the network clients, and rule.py can import this module.
+RESPONDENTS.register("rule", "popnavshift.responses.rule:RuleRespondent")
+RESPONDENTS.register("openai", "popnavshift.responses.llm.openai:OpenAIRespondent")
+RESPONDENTS.register("gemini", "popnavshift.responses.llm.gemini:GeminiRespondent")

@@ -34,7 +34,7 @@ from ..hashing import unit_hash
 from ..personas.fields import vocabulary
 from ..tables import ACTIONS, BLOCK_ITEMS
 from .probes import PROBE_IDS
-from .respondent import RESPONDENTS, Answer, ProbeRequest, Progress, Respondent
+from .respondent import Answer, ProbeRequest, Progress, Respondent
 from .schema import LEVELS
 
 TRAITS = ("caution", "urgency", "patience", "trust", "mobility")
@@ -178,5 +178,3 @@ class RuleRespondent(Respondent):
                 progress(1)
         return out
 
-
-RESPONDENTS.register("rule", RuleRespondent)

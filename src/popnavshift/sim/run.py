@@ -28,10 +28,10 @@ from navground import sim
 
 from ..episodes.specs import EpisodeSpec
 from ..errors import ConfigError, PopNavShiftError
-from ..plugins import make_backend, make_controller
 from ..tables import PARAMS, PEDESTRIAN_METRICS
+from .backends import BACKENDS
 from .constants import DT, ROBOT_RADIUS, TIME_LIMIT
-from .controllers import LoopDriver
+from .controllers import CONTROLLERS, LoopDriver
 from .loop import StepLoop
 from .metrics import pedestrian_metrics, robot_metrics
 from .pedestrians import ResponseLayer
@@ -98,7 +98,7 @@ def simulate(
     """
     profiles, persona_ids = slot_profiles(spec, slots)
     factory, controller_name = resolve_controller(controller)
-    ped_backend = make_backend(backend)
+    ped_backend = BACKENDS.make(backend)
     try:
         trace = _run(spec, profiles, factory, controller_name, ped_backend, record,
                      stretches=stretches and not record)
@@ -181,11 +181,11 @@ def _pedestrian_columns(spec: EpisodeSpec, controller: str, backend: str, trace:
 def resolve_controller(controller):
     """(factory or None, name) for a controller id (a registered name, an entry point or
     ``package.module:Class``, optionally with JSON parameters; see
-    :mod:`popnavshift.plugins`), a factory object, or None/"none"."""
+    :mod:`popnavshift.sim.controllers.registry`), a factory object, or None/"none"."""
     if controller is None or controller == "none":
         return None, "none"
     if isinstance(controller, str):
-        return make_controller(controller), controller
+        return CONTROLLERS.make(controller), controller
     if not (hasattr(controller, "build") and hasattr(controller, "after_placement")):
         raise ConfigError(
             "controller must be a name, a ControllerFactory or None, "

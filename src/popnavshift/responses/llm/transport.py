@@ -87,6 +87,8 @@ class LLMRespondent(Respondent):
     :meth:`_body` and :meth:`_connect`. Times are in s, ``rate_limit`` in calls/s.
     """
 
+    uses_cache = True
+
     def __init__(
         self,
         *,

@@ -3,9 +3,10 @@
 Every controller drives the same robot: a differential-drive disk of radius
 :data:`ROBOT_RADIUS` with :data:`WHEEL_AXIS`, the cell's robot speed as its
 optimal speed, the same goal, limits and sensing range. A controller is a
-factory registered by name::
+factory registered by name in :data:`CONTROLLERS` (the built-ins in
+:mod:`.builtin`; ids, plug-ins and ``make`` in :mod:`.registry`)::
 
-    CONTROLLERS.register("robot_orca", RobotORCA)
+    CONTROLLERS.make('robot_orca{"time_horizon":4.0}')
 
 A factory is called as ``factory(**params)`` and returns a
 :class:`ControllerFactory`-like object with
@@ -30,13 +31,13 @@ from typing import Any, Protocol
 import numpy as np
 from navground import core, sim
 
-from ...registry import Registry
-
 # the robot every controller drives: declared in sim/constants.py, re-exported for plug-ins
 from ..constants import ROBOT_GOAL_TOLERANCE as ROBOT_GOAL_TOLERANCE
 from ..constants import ROBOT_RADIUS as ROBOT_RADIUS
 from ..constants import ROBOT_SENSING_RANGE as ROBOT_SENSING_RANGE
 from ..constants import WHEEL_AXIS as WHEEL_AXIS
+from . import builtin  # noqa: F401  (registers the built-in controllers)
+from .registry import CONTROLLERS
 
 
 class ControllerFactory(Protocol):
@@ -88,6 +89,5 @@ class LoopDriver(Protocol):
     def step(self, step: int, pose: np.ndarray, peds: np.ndarray, ids: np.ndarray) -> None: ...
 
 
-CONTROLLERS: Registry[ControllerFactory] = Registry("controller")
-
-from . import builtin  # noqa: E402, F401  (registers the built-in controllers)
+__all__ = ["CONTROLLERS", "ControllerFactory", "LoopDriver", "ROBOT_GOAL_TOLERANCE",
+           "ROBOT_RADIUS", "ROBOT_SENSING_RANGE", "WHEEL_AXIS"]

@@ -21,16 +21,21 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from functools import partial
+from typing import Any
 
-from . import CONTROLLERS, ControllerFactory, early_yield, reactive
+from . import early_yield, reactive
 from .navground_type import NavgroundType, navground_types
+from .registry import CONTROLLERS
 from .robot_orca import RobotORCA
 
-BUILTINS: dict[str, Callable[..., ControllerFactory]] = {
+BUILTINS: dict[str, Callable[..., Any]] = {
     "reactive": reactive.Reactive,
     "early_yield": early_yield.EarlyYield,
     "robot_orca": RobotORCA,
 }
+#: the paper's controllers, in its order: the default of a study part and the
+#: baselines of ``popnavshift evaluate``
+BUILTIN_CONTROLLERS: tuple[str, ...] = tuple(BUILTINS)
 OWN_BEHAVIORS = frozenset({reactive.NAVGROUND_NAME, early_yield.NAVGROUND_NAME})
 
 

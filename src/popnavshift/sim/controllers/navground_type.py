@@ -93,3 +93,45 @@ class NavgroundType:
                  for k, p in self._props.items()}  # vectors come back as numpy arrays
         return {"controller": self.name, "navground_type": self.name,
                 **defaults, **props, **self.params}
+
+
+class BehaviorClass:
+    """Controller factory of a ``core.Behavior`` subclass (a plug-in's class).
+
+    ``build`` calls ``cls(kinematics, radius)``, sets the cell speed as optimal
+    speed and applies ``params``: ``horizon``, ``safety_margin`` and
+    ``rotation_tau`` as attributes, anything else as a navground property the
+    class registered (``@core.register``), read back after setting.
+    """
+
+    def __init__(self, name: str, cls: type[core.Behavior], **params: Any) -> None:
+        self.name, self.cls = name, cls
+        props = _properties(cls)
+        unknown = sorted(set(params) - set(props) - set(BASE_PARAMS))
+        if unknown:
+            allowed = sorted({*props, *BASE_PARAMS})
+            raise ConfigError(f"controller {name!r} has no parameter {unknown[0]!r}; "
+                              f"allowed: {', '.join(allowed)}")
+        self.params = dict(params)
+
+    def build(self, kinematics: core.Kinematics, radius: float, speed: float) -> core.Behavior:
+        behavior = self.cls(kinematics, radius)
+        behavior.optimal_speed = speed
+        apply_params(behavior, self.params, self.name)
+        return behavior
+
+    def after_placement(self, behavior: core.Behavior, dt: float) -> None:
+        """Nothing: a Python behaviour initialises itself on its first command."""
+
+    def describe(self) -> dict[str, Any]:
+        return {"controller": self.name,
+                "class": f"{self.cls.__module__}:{self.cls.__qualname__}", **self.params}
+
+
+def _properties(cls: type) -> dict[str, Any]:
+    """The navground properties of a Behavior subclass declared with ``name=``.
+
+    navground stores that name as ``cls._type``; a class declared without one
+    has no registered properties."""
+    type_name = getattr(cls, "_type", None)
+    return dict(core.Behavior.type_properties.get(type_name, {})) if type_name else {}

@@ -1,4 +1,4 @@
-"""Plug-ins: every way of naming a controller (and backend, respondent), and every error."""
+"""Registries: every way of naming a controller (and backend, respondent), and every error."""
 
 from __future__ import annotations
 
@@ -14,16 +14,12 @@ from popnavshift.engine.study import study_from_dict
 from popnavshift.engine.worker import Context, run_batch
 from popnavshift.episodes import assign_slots, get_episode
 from popnavshift.errors import ConfigError, UnknownNameError
-from popnavshift.plugins import (
-    BehaviorClass,
-    controller_id,
-    make_backend,
-    make_controller,
-    make_respondent,
-    parse_controller_id,
-)
+from popnavshift.responses.respondent import RESPONDENTS
+from popnavshift.sim.backends import BACKENDS
 from popnavshift.sim.check import check_controller
 from popnavshift.sim.controllers import CONTROLLERS
+from popnavshift.sim.controllers.navground_type import BehaviorClass
+from popnavshift.sim.controllers.registry import controller_id, parse_controller_id
 from popnavshift.sim.run import ControllerError, failed_result, simulate
 from popnavshift.tables import check_table
 
@@ -115,7 +111,7 @@ def slots(episode: str = EPISODE) -> tuple:
 
 # --------------------------------------------------------------- ways of naming a controller
 def test_a_class_spec_is_wrapped_into_a_checked_controller(user_path):
-    factory = make_controller(CLASS_SPEC)
+    factory = CONTROLLERS.make(CLASS_SPEC)
     assert isinstance(factory, BehaviorClass) and factory.name == CLASS_SPEC
     check_controller(factory)
     assert factory.describe()["class"] == CLASS_SPEC
@@ -128,7 +124,7 @@ def test_a_class_spec_is_wrapped_into_a_checked_controller(user_path):
 def test_an_entry_point_names_the_example_controller(user_path, monkeypatch):
     install_example(user_path / "site")
     monkeypatch.syspath_prepend(str(user_path / "site"))
-    factory = make_controller("slow_near_peds")
+    factory = CONTROLLERS.make("slow_near_peds")
     assert isinstance(factory, BehaviorClass) and factory.name == "slow_near_peds"
     assert "slow_near_peds" in CONTROLLERS.names()
     spec, members = slots()
@@ -139,22 +135,22 @@ def test_navground_types_and_builtins_take_parameters_in_their_id():
     ident = controller_id("HL", {"tau": 0.3, "eta": 0.4})
     assert ident == 'HL{"eta":0.4,"tau":0.3}' == controller_id("HL", {"eta": 0.4, "tau": 0.3})
     assert parse_controller_id(ident) == ("HL", {"eta": 0.4, "tau": 0.3})
-    factory = make_controller(ident)
+    factory = CONTROLLERS.make(ident)
     assert factory.describe()["tau"] == 0.3
     assert factory.build(_kin(), 0.35, 1.0).tau == pytest.approx(0.3, abs=1e-6)  # float32
-    assert make_controller("reactive", {"buffer": 0.1}).params["buffer"] == 0.1
+    assert CONTROLLERS.make("reactive", buffer=0.1).params["buffer"] == 0.1
     spec, members = slots()
     assert simulate(spec, members, ident).run["controller"] == ident
     assert controller_id("HL", {"tau": 0.3}) != controller_id("HL", {"tau": 0.31})
 
 
 def test_class_parameters_are_navground_properties_read_back(user_path):
-    factory = make_controller(CLASS_SPEC, {"slow_distance": 3.0, "safety_margin": 0.1})
+    factory = CONTROLLERS.make(CLASS_SPEC, slow_distance=3.0, safety_margin=0.1)
     behavior = factory.build(_kin(), 0.35, 0.8)
     assert behavior.get("slow_distance") == 3.0
     assert behavior.safety_margin == pytest.approx(0.1, abs=1e-6)  # navground stores float32
     with pytest.raises(ConfigError, match="has no parameter 'slow'.*allowed: .*slow_distance"):
-        make_controller(CLASS_SPEC, {"slow": 3.0})
+        CONTROLLERS.make(CLASS_SPEC, slow=3.0)
 
 
 def _kin():
@@ -172,18 +168,18 @@ def test_a_study_file_names_controllers_with_parameters():
 
 
 def test_backends_and_respondents_by_class_spec():
-    assert make_backend("popnavshift.sim.backends:HLBackend").name == "hl"
+    assert BACKENDS.make("popnavshift.sim.backends:HLBackend").name == "hl"
     spec, members = slots()
     run = simulate(spec, members, None, "popnavshift.sim.backends:HLBackend").run
     assert run["backend"] == "popnavshift.sim.backends:HLBackend"
-    rule = make_respondent("popnavshift.responses.rule:RuleRespondent", seed=3)
+    rule = RESPONDENTS.make("popnavshift.responses.rule:RuleRespondent", seed=3)
     assert rule.name == "rule"
     with pytest.raises(ConfigError, match="not a pedestrian backend"):
-        make_backend("collections:OrderedDict")
+        BACKENDS.make("collections:OrderedDict")
     with pytest.raises(ConfigError, match="not a Respondent.*subclass"):
-        make_respondent("collections:OrderedDict")
+        RESPONDENTS.make("collections:OrderedDict")
     with pytest.raises(UnknownNameError, match="did you mean 'orca'"):
-        make_backend("orka")
+        BACKENDS.make("orka")
 
 
 # -------------------------------------------------------------------------------- errors
@@ -199,12 +195,12 @@ def test_backends_and_respondents_by_class_spec():
 ])
 def test_bad_controller_specs_are_one_line_config_errors(user_path, spec, message):
     with pytest.raises(ConfigError, match=message):
-        make_controller(spec)
+        CONTROLLERS.make(spec)
 
 
 def test_an_unknown_name_suggests_close_ones(user_path):
     with pytest.raises(UnknownNameError, match="did you mean 'robot_orca'"):
-        make_controller("robot_orka")
+        CONTROLLERS.make("robot_orka")
 
 
 def test_an_entry_point_that_fails_to_load_is_named(user_path, monkeypatch):
@@ -213,7 +209,7 @@ def test_an_entry_point_that_fails_to_load_is_named(user_path, monkeypatch):
         "[popnavshift.controllers]\nbroken_ctrl = import_bomb:Cls\n")
     monkeypatch.syspath_prepend(str(user_path / "site"))
     with pytest.raises(ConfigError, match="entry point 'broken_ctrl' .*failed to load"):
-        make_controller("broken_ctrl")
+        CONTROLLERS.make("broken_ctrl")
 
 
 def test_a_controller_that_raises_is_a_controller_error_with_the_time(user_path):
@@ -263,8 +259,29 @@ def test_the_contract_check_rejects_a_broken_controller_and_reports_one_that_rai
     from popnavshift.evaluate.run import check
 
     with pytest.raises(ConfigError, match="infeasible command.*contract check"):
-        check(make_controller("user_ctrls:Infeasible"))
-    assert check(make_controller("user_ctrls:RaisesNearPeds")).startswith(
+        check(CONTROLLERS.make("user_ctrls:Infeasible"))
+    assert check(CONTROLLERS.make("user_ctrls:RaisesNearPeds")).startswith(
         "raised RuntimeError in the contract check")
-    assert check(make_controller(CLASS_SPEC)) == "passed"
+    assert check(CONTROLLERS.make(CLASS_SPEC)) == "passed"
 
+
+
+def test_a_respondent_that_declares_uses_cache_gets_the_study_cache(tmp_path, monkeypatch):
+    """Caching follows the respondent's declared kind, not its name: a newly registered
+    network respondent gets the folder's response cache, the rule respondent none."""
+    from popnavshift.pipeline import RESPONSE_CACHE, respondent_from
+    from popnavshift.responses.llm.openai import OpenAIRespondent
+
+    class LocalModel(OpenAIRespondent):
+        name = "local_model"
+
+    monkeypatch.setattr(RESPONDENTS, "_entries", dict(RESPONDENTS._entries))
+    RESPONDENTS.register("local_model", LocalModel)
+    local = {"base_url": "http://127.0.0.1:9/v1", "api_key_env": None}
+    made = respondent_from("local_model", local, tmp_path)
+    assert isinstance(made, LocalModel) and made.cache_path == tmp_path / RESPONSE_CACHE
+    other = tmp_path / "elsewhere.sqlite"
+    assert respondent_from("local_model", {**local, "cache_path": other},
+                           tmp_path).cache_path == other
+    rule = respondent_from("rule", {}, tmp_path)
+    assert not rule.uses_cache and not hasattr(rule, "cache_path")

@@ -1,0 +1,103 @@
+"""The stages of a study, declared once.
+
+A study folder is built stage by stage: each :class:`Stage` writes one table and
+records its *stamp* in ``stages.json``, a hash of the settings that produced it,
+chained through the stamp of the stage it reads (``after``). A stage whose stamp
+or output is out of date is run again, and so is every stage after it in the
+chain (:func:`popnavshift.engine.runner.run_stages`). The runs come last
+(:mod:`.plan`, :mod:`.executors`): their batches are stamped with the
+populations' and episodes' stamps (:func:`batch_inputs`) and the code they run
+(:mod:`.stamps`).
+
+The runner, ``popnavshift evaluate``, the CLI and the benchmarks read this
+declaration; the stage functions themselves live in :mod:`popnavshift.pipeline`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..episodes.specs import all_episodes, episodes_table
+from ..hashing import content_digest, digest
+from ..io import write_parquet
+from ..pipeline import (
+    PopulationSettings,
+    run_personas,
+    run_populations,
+    run_profiles,
+    run_responses,
+)
+from ..responses.probes import PROBE_SET_HASH
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One stage: its ``name`` (the key in ``stages.json``), the ``table`` it writes in
+    the study folder, the stage it reads (``after``, None for a source), what of the
+    settings enters its stamp (``settings``) and how it runs (``run``)."""
+
+    name: str
+    table: str
+    after: str | None
+    settings: Callable[[PopulationSettings], list[Any]]
+    run: Callable[[Path, PopulationSettings, bool], object]
+
+    def stamp(self, s: PopulationSettings, stamps: Mapping[str, str]) -> str:
+        """``digest([name, upstream stamp, *settings])``: the formula every study folder's
+        ``stages.json`` was written with (changing it reruns every stage of old folders)."""
+        upstream = [stamps[self.after]] if self.after is not None else []
+        return digest([self.name, *upstream, *self.settings(s)])
+
+
+def _persona_settings(s: PopulationSettings) -> list[Any]:
+    source: list[Any] = [s.source, s.n, s.seed, s.missing]
+    if s.source != "synthetic" and Path(s.source).exists():
+        source.append(content_digest(s.source))  # an edited file reruns its stage
+    release = [s.codebook, s.sources, s.verify_checksums]
+    if release != [None, None, True]:  # release options only when set: old stamps stay valid
+        source.append(release)
+    return source
+
+
+def _population_settings(s: PopulationSettings) -> list[Any]:
+    nulls = [list(s.nulls), list(s.null_mappings)] if s.nulls else []
+    return [s.matched_n, *nulls]
+
+
+def _write_episodes(folder: Path, s: PopulationSettings, _progress: bool) -> None:
+    write_parquet(episodes_table(all_episodes(seed=s.seed)), folder / "episodes.parquet")
+
+
+STAGES: tuple[Stage, ...] = (
+    Stage("personas", "personas.parquet", None, _persona_settings,
+          lambda folder, s, _progress: run_personas(folder, s)),
+    Stage("responses", "responses.parquet", "personas",
+          lambda s: [s.respondent, s.respondent_options, s.matched_n, PROBE_SET_HASH,
+                     s.respondent2, s.respondent2_options],
+          run_responses),
+    Stage("profiles", "profiles.parquet", "responses",
+          lambda s: [list(s.mappings), s.structure],
+          lambda folder, s, _progress: run_profiles(folder, s)),
+    Stage("populations", "populations.parquet", "profiles", _population_settings,
+          lambda folder, s, _progress: run_populations(folder, s)),
+    Stage("episodes", "episodes.parquet", None, lambda s: [s.seed], _write_episodes),
+)
+#: the tables of the runs, compacted from their batches' shards (:mod:`.store`)
+RUN_TABLES: tuple[str, ...] = ("runs.parquet", "pedestrians.parquet")
+
+
+def stage_stamps(s: PopulationSettings) -> dict[str, str]:
+    """The stamp every stage of :data:`STAGES` should have under settings ``s``."""
+    stamps: dict[str, str] = {}
+    for stage in STAGES:
+        stamps[stage.name] = stage.stamp(s, stamps)
+    return stamps
+
+
+def batch_inputs(stamps: Mapping[str, str]) -> str:
+    """The stamp of everything a batch of runs is built from (the populations and the
+    episode draws), from a folder's stage stamps: part of every batch id."""
+    return digest([stamps["populations"], stamps["episodes"]])

@@ -1,0 +1,104 @@
+"""The controller registry: controller ids and the one ``make``.
+
+A controller is named, in a study file or on the command line, by a registered
+name (the built-ins of :mod:`.builtin` and every navground behaviour type), an
+entry point of the group ``popnavshift.controllers``, or a Python object
+``package.module:Class`` (see :mod:`popnavshift.registry`). A class only has to
+subclass navground's ``core.Behavior`` (:class:`.navground_type.BehaviorClass`
+wraps it in the controller contract); a class that already implements that
+contract (``build``, ``after_placement``, ``describe``) is used as it is.
+
+Controller parameters are part of the controller's identity:
+``controller_id("HRVO", {"tau": 0.5})`` is ``'HRVO{"tau":0.5}'``, so two
+parameterisations never share a run and a runs table's ``controller`` column is
+enough to rebuild the controller (``CONTROLLERS.make`` parses it).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from typing import Any
+
+from navground import core
+
+from ...errors import ConfigError
+from ...hashing import canonical_json
+from ...registry import Registry, describe_object, has_methods, is_object_spec
+from .navground_type import BehaviorClass
+
+FACTORY_METHODS = ("build", "after_placement", "describe")
+
+
+def controller_id(name: str, params: Mapping[str, Any] | None = None) -> str:
+    """The controller column value: ``name``, or ``name`` + canonical JSON of ``params``."""
+    if not name or "{" in name:
+        raise ConfigError(f"controller name must be non-empty and without '{{', got {name!r}")
+    if not params:
+        return name
+    try:
+        json.dumps(dict(params), allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"controller {name!r}: parameters must be JSON values: {exc}") from None
+    return name + canonical_json(dict(params))
+
+
+def parse_controller_id(identity: str) -> tuple[str, dict[str, Any]]:
+    """Inverse of :func:`controller_id`: ``'HRVO{"tau":0.5}'`` → ``("HRVO", {"tau": 0.5})``."""
+    name, brace, rest = identity.partition("{")
+    if not brace:
+        return identity, {}
+    try:
+        params = json.loads(brace + rest)
+    except json.JSONDecodeError:
+        params = None
+    if not name or not isinstance(params, dict):
+        raise ConfigError(f"controller {identity!r}: expected NAME or NAME{{JSON parameters}}")
+    return name, params
+
+
+class ControllerRegistry(Registry[Any]):
+    """:class:`Registry` whose specs are controller ids and whose ``make`` accepts a
+    navground ``Behavior`` class as well as a controller factory."""
+
+    def __init__(self) -> None:
+        super().__init__("controller")
+
+    def check(self, spec: str, obj: Any) -> None:
+        """A ``package.module:Class`` must be a Behavior or a controller factory class;
+        a registered factory is checked by what it builds (:meth:`make`)."""
+        if not is_object_spec(spec) or _is_behavior_class(obj):
+            return
+        if not (isinstance(obj, type) and has_methods(obj, FACTORY_METHODS)):
+            raise ConfigError(
+                f"controller {spec!r} is {describe_object(obj)}, not a navground Behavior",
+                hint="a controller class must subclass navground.core.Behavior, "
+                     "or implement build, after_placement and describe")
+
+    def make(self, spec: str, **params: Any) -> Any:
+        """A controller factory for a controller id (name, entry point or class spec,
+        with optional JSON parameters) and extra ``params``. A registered factory keeps
+        its own ``name`` (navground types build by it); tables use the full id."""
+        name, own = parse_controller_id(spec)
+        if own and params:
+            raise ConfigError(f"controller {spec!r} already carries parameters; "
+                              "give them either in the name or separately")
+        given = dict(own or params)
+        obj = self.resolve(name)
+        if _is_behavior_class(obj):  # named by its full id, as in the tables
+            return BehaviorClass(controller_id(name, given), obj, **given)
+        factory = super().make(name, **given)
+        if not has_methods(factory, FACTORY_METHODS):
+            missing = ", ".join(m for m in FACTORY_METHODS if not hasattr(factory, m))
+            raise ConfigError(f"controller {name!r} built {describe_object(factory)}, "
+                              f"which has no {missing}")
+        return factory
+
+
+def _is_behavior_class(obj: Any) -> bool:
+    return isinstance(obj, type) and issubclass(obj, core.Behavior)
+
+
+#: the controller registry (the built-ins are added by :mod:`.builtin`, which
+#: ``popnavshift.sim.controllers`` imports)
+CONTROLLERS = ControllerRegistry()
