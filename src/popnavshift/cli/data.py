@@ -12,7 +12,7 @@ from rich.console import Console
 from rich.markup import escape
 
 from ..errors import InputError
-from . import app
+from .app import app
 
 StudyOpt = Annotated[Path, typer.Option("--study", "-s", help="Study folder.")]
 #: stdout, not the stderr console of progress and messages: the text is the output

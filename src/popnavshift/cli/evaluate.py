@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from ..progress import console
-from . import MAX_WORKERS, app, check_workers, say
+from .app import MAX_WORKERS, app, check_workers, say
 from .simulation import ParamOpt, parse_params
 
 
@@ -73,7 +73,7 @@ def evaluate(
     from ..evaluate import BASELINES, make_card
     from ..evaluate import evaluate as run_evaluation
     from ..sim.controllers.registry import controller_id
-    from . import folder
+    from .app import folder
 
     check_workers(workers)
     s, default_dir = _baseline_study(study)

@@ -13,7 +13,7 @@ from rich.table import Table
 from ..engine.lock import study_lock
 from ..errors import ConfigError
 from ..progress import console
-from . import Out, app, finite_range, folder, say
+from .app import Out, app, finite_range, folder, say
 
 
 def _settings(**kw: Any):

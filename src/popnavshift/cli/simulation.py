@@ -11,7 +11,7 @@ from rich.table import Table
 
 from ..errors import ConfigError
 from ..progress import console
-from . import app, say
+from .app import app, say
 
 StudyDir = Annotated[
     Path,

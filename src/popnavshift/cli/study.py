@@ -11,7 +11,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from ..progress import console
-from . import MAX_WORKERS, app, check_workers, folder, say
+from .app import MAX_WORKERS, app, check_workers, folder, say
 
 StudyArg = Annotated[
     str | None,

@@ -18,7 +18,6 @@ from typing import Any
 
 import pandas as pd
 
-from .. import __version__
 from ..episodes.specs import all_episodes
 from ..errors import ConfigError
 from ..io import write_json
@@ -27,6 +26,7 @@ from ..populations.perturb import ProfileSet
 from ..progress import console
 from ..responses.probes import PROBE_SET_HASH
 from ..tables import RUN_KEY
+from ..version import __version__
 from .executors import execute
 from .plan import batches, count_runs, plan_study
 from .stages import STAGES, batch_inputs, stage_stamps

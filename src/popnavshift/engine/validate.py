@@ -62,8 +62,8 @@ def check_grid_values(selection: EpisodeSelection, episodes: Sequence, where: st
 
 
 def _check_names(study: Study) -> None:
-    from ..sim.controllers import CONTROLLERS
     from ..sim.backends import BACKENDS
+    from ..sim.controllers import CONTROLLERS
 
     controllers = {c for part in study.parts.values() for c in part.controllers}
     for controller in sorted(controllers):

@@ -34,7 +34,6 @@ from typing import Any
 
 import pandas as pd
 
-from .. import __version__
 from ..engine.executors import execute
 from ..engine.plan import batches, plan_study
 from ..engine.rebuild import rebuild_run
@@ -53,6 +52,7 @@ from ..sim.controllers import CONTROLLERS
 from ..sim.controllers.builtin import BUILTIN_CONTROLLERS
 from ..sim.controllers.registry import controller_id, parse_controller_id
 from ..tables import NO_ROBOT, RUN_KEY
+from ..version import __version__
 from .verdict import SAFETY_THRESHOLD
 
 BASELINES: tuple[str, ...] = BUILTIN_CONTROLLERS

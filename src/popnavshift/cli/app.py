@@ -1,0 +1,122 @@
+"""The ``popnavshift`` app and what every command module shares: the typer app and
+its global options, the ``--out`` option, folder and worker checks, and :func:`say`
+(markup-safe, redacted text). Command modules import from here; :mod:`popnavshift.cli`
+registers them and runs the app."""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.markup import escape
+
+from ..errors import ConfigError
+from ..progress import console
+from ..redact import RedactingFilter, redact
+from ..version import __version__
+
+app = typer.Typer(
+    name="popnavshift",
+    help=(
+        "Stress-test social robot navigation under behavioral population shift.\n\n"
+        "Pipeline: personas → probe responses → motion profiles → populations → "
+        "episodes → navground runs → analysis → report. Each stage reads and writes a "
+        "study folder; `popnavshift run` does all of it."
+    ),
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+STATE: dict[str, Any] = {"verbose": False}
+
+Out = Annotated[Path, typer.Option("--out", "-o", help="Study folder to write into.")]
+#: more worker processes than this is a typo, not a machine (each holds ~300 MB)
+MAX_WORKERS = 512
+
+
+def finite_range(low: float | None = None, high: float | None = None, *, above: bool = False):
+    """A typer callback: the value (if given) must be finite, ≥ ``low`` (> ``low`` when
+    ``above``) and ≤ ``high``; click's FloatRange lets NaN through."""
+
+    def check(value: float | None) -> float | None:
+        if value is None:
+            return value
+        too_low = low is not None and (value <= low if above else value < low)
+        if not math.isfinite(value) or too_low or (high is not None and value > high):
+            lo = "" if low is None else f"{'>' if above else '≥'} {low:g}"
+            hi = "" if high is None else f"≤ {high:g}"
+            raise typer.BadParameter(f"{value!r} is not a finite number {lo} {hi}".strip())
+        return value
+
+    return check
+
+
+def _version(value: bool) -> None:
+    if value:
+        console.print(f"popnavshift {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def main_callback(
+    verbose: Annotated[
+        bool, typer.Option("--verbose", "-v", help="Show details and tracebacks.")
+    ] = False,
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version", callback=_version, is_eager=True, help="Print the version and exit."
+        ),
+    ] = False,
+) -> None:
+    STATE["verbose"] = verbose
+    configure_logging(verbose)
+
+
+def configure_logging(verbose: bool) -> None:
+    """Show the package's log on the console: warnings, and with ``-v`` retries and
+    re-asks too; every line is redacted."""
+    from rich.logging import RichHandler
+
+    logger = logging.getLogger("popnavshift")
+    for old in [h for h in logger.handlers if getattr(h, "popnavshift_cli", False)]:
+        logger.removeHandler(old)
+    handler = RichHandler(console=console, markup=False, show_path=False, show_time=verbose)
+    handler.popnavshift_cli = True  # type: ignore[attr-defined]
+    handler.addFilter(RedactingFilter())
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO if verbose else logging.WARNING)
+
+
+def folder(path: Path) -> Path:
+    """Create the study folder ``path``; ConfigError if it is a file or not writable."""
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"--out {path} exists and is not a folder")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        probe = path / f".popnavshift-write-test-{os.getpid()}"
+        probe.touch()
+        probe.unlink()
+    except OSError as exc:
+        raise ConfigError(
+            f"--out {path} is not a writable folder ({exc.strerror or exc})",
+            hint="choose another --out or fix its permissions",
+        ) from None
+    return path
+
+
+def check_workers(workers: int, executor: str = "local") -> None:
+    """Local worker processes beyond 4 per CPU only thrash memory (each holds ~300 MB)."""
+    cpus = os.cpu_count() or 1
+    if executor == "local" and workers > 4 * cpus:
+        raise ConfigError(f"--workers {workers} is more than 4 per CPU ({cpus} CPUs here)",
+                          hint=f"use at most {4 * cpus}, or --executor ray for a cluster")
+
+
+def say(text: object) -> str:
+    """``text`` (a path, a name, a server's message) made safe for rich markup."""
+    return escape(redact(str(text)))
