@@ -207,7 +207,7 @@ def run_study(
             report.executed += len(by_id[batch_id].runs)
             advance(len(by_id[batch_id].runs))
     sim_seconds = time.perf_counter() - sim_started
-    runs_table, peds_table = store.compact(all_batches, runs, carried, inputs, code)
+    n_runs, n_peds = store.compact_files(all_batches, runs, carried, inputs, code)
     report.compacted = True
     report.seconds = time.perf_counter() - started
     write_manifest(
@@ -218,8 +218,8 @@ def run_study(
         sim_seconds,
         workers,
         executor_name,
-        len(runs_table),
-        len(peds_table),
+        n_runs,
+        n_peds,
         count_runs(study, episodes),
     )
     return report
