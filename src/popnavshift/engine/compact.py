@@ -163,6 +163,7 @@ def write_compacted(folder: Path, chunks: list[list[Shard]],
                 w.close()
         if any(w.writer is None for w in writers.values()):
             raise ValueError(f"{folder}: nothing to compact")  # a plan always has runs
+    pa.default_memory_pool().release_unused()  # the report, next, runs in this process
     return writers["runs"].rows, writers["pedestrians"].rows
 
 
