@@ -7,7 +7,7 @@ Each step runs in a child process, whose peak RSS is read from ``wait4`` (what
   into runs.parquet and pedestrians.parquet of a scratch folder
   (:func:`popnavshift.engine.compact.write_compacted`, as ``popnavshift run`` does at its end),
   and the tables compared with those of ``--from``;
-* ``report``: ``popnavshift report`` on the folder.
+* ``report``: ``popnavshift report`` on a copy of the folder (its tables, not its shards).
 
 With ``--runs N`` above the folder's run count, the report is measured on a synthetic
 study of at least N runs built from it: the parts that repeat on extra episode seed sets
@@ -41,8 +41,6 @@ from popnavshift.engine.plan import Run
 from popnavshift.episodes.specs import seed_set_id
 from popnavshift.tables import RUN_KEY
 
-COPIED = ("episodes.parquet", "populations.parquet", "personas.parquet", "profiles.parquet",
-          "personas.json", "responses.json", "stages.json")
 COMPACT = """
 import json, sys
 from pathlib import Path
@@ -99,12 +97,7 @@ def _renamed(table: pa.Table, source: int, seed: int, ids: dict[tuple, str]) -> 
 
 def synthesize(src: Path, out: Path, target: int) -> int:
     """A study folder of at least ``target`` runs made from ``src`` (module doc); its run count."""
-    out.mkdir(parents=True, exist_ok=True)
-    for name in COPIED:
-        if (src / name).exists():
-            shutil.copy(src / name, out / name)
-    if (src / "figures").is_dir():
-        shutil.copytree(src / "figures", out / "figures", dirs_exist_ok=True)
+    copy_tables(src, out)  # runs, pedestrians and the manifest are replaced below
     manifest = json.loads((src / "manifest.json").read_text())
     runs = pq.read_table(src / "runs.parquet")
     plan = extra_seeds(manifest, runs, target)
@@ -123,6 +116,15 @@ def synthesize(src: Path, out: Path, target: int) -> int:
             part["seeds"] = sorted({*part["seeds"], *plan})
     (out / "manifest.json").write_text(json.dumps(manifest, indent=2))
     return all_runs.num_rows
+
+
+def copy_tables(src: Path, out: Path) -> None:
+    """The tables, JSON files and figures of ``src`` (not its shards or report) into ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    for path in [*src.glob("*.parquet"), *src.glob("*.json")]:
+        shutil.copy(path, out / path.name)
+    if (src / "figures").is_dir():
+        shutil.copytree(src / "figures", out / "figures", dirs_exist_ok=True)
 
 
 def bench_compaction(src: Path, scratch: Path) -> dict:
@@ -160,13 +162,15 @@ def main() -> None:
         rows.append(bench_compaction(args.src, scratch / "compaction"))
         print(json.dumps(rows[-1]), flush=True)
     if "report" not in args.skip:
-        folder = args.src
+        folder = scratch / "study"  # the report is written into the folder: never --from's
         if args.runs > pq.read_metadata(args.src / "runs.parquet").num_rows:
             folder = scratch / f"study-{args.runs}"
             started = time.perf_counter()
             n = synthesize(args.src, folder, args.runs)
             print(f"synthetic study: {n:,} runs in {folder} "
                   f"({time.perf_counter() - started:.0f} s)", flush=True)
+        else:
+            copy_tables(args.src, folder)
         rows.append(bench_report(folder))
         print(json.dumps(rows[-1]), flush=True)
 
