@@ -89,7 +89,9 @@ def _renamed(table: pa.Table, source: int, seed: int, ids: dict[tuple, str]) -> 
     rows = rows.set_column(rows.schema.get_field_index("episode"), "episode", episode)
     rows = rows.set_column(rows.schema.get_field_index("seed_set"), "seed_set",
                            pa.array([seed] * len(rows), pa.int64()))
-    keys = list(zip(*(rows[c].to_pylist() for c in RUN_KEY), strict=True))
+    episodes, populations, controllers, backends, mappings = (rows[c].to_pylist()
+                                                              for c in RUN_KEY)
+    keys = zip(episodes, populations, controllers, backends, mappings, strict=True)
     new = [ids[k] if k in ids else ids.setdefault(k, Run(*k, "").id) for k in keys]
     return rows.set_column(rows.schema.get_field_index("run_id"), "run_id",
                            pa.array(new, rows["run_id"].type))
