@@ -13,7 +13,7 @@ leaves the previous tables, or none, never half of one.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import ExitStack
 from itertools import groupby
 from pathlib import Path
@@ -138,12 +138,14 @@ class _TableWriter:
 
 
 def write_compacted(folder: Path, chunks: list[list[Shard]],
-                    carried: Callable[[str], CarriedRows] | None = None) -> tuple[int, int]:
+                    carried: tuple[set[tuple], dict[tuple, str]] | None = None
+                    ) -> tuple[int, int]:
     """Write ``folder/runs.parquet`` and ``folder/pedestrians.parquet`` from the shard
-    ``chunks`` (:func:`episode_chunks`) plus, with ``carried``, the carried rows of each
-    present table; returns their row counts. Nothing replaces the present tables
-    before both new ones are complete."""
-    readers = {name: carried(file) if carried else None for name, file, _ in TABLES}
+    ``chunks`` (:func:`episode_chunks`) plus, with ``carried`` (the keys of the runs to
+    carry and the part of each), those runs' rows of the present tables; returns their
+    row counts. Nothing replaces the present tables before both new ones are complete."""
+    readers = {name: CarriedRows(folder / file, *carried) if carried else None
+               for name, file, _ in TABLES}
     with ExitStack() as stack:
         writers = {name: _TableWriter(stack.enter_context(atomic_path(folder / file)))
                    for name, file, _ in TABLES}

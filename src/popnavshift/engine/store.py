@@ -6,7 +6,8 @@ atomically and both tagged with the batch id and run count in the Parquet
 metadata. On resume a batch counts as done only when both shards read back
 with the right tag and row count; anything else (missing, truncated, corrupt,
 foreign) is deleted and redone, never merged. At the end the shards are
-compacted, sorted by run key, into ``runs.parquet`` and ``pedestrians.parquet``;
+compacted, sorted by run key, into ``runs.parquet`` and ``pedestrians.parquet``
+(a few episodes at a time, :mod:`.compact`);
 a later run of the study carries over from them every run it still plans with
 unchanged inputs and code (:meth:`RunStore.carried`).
 """
@@ -24,7 +25,7 @@ from ..errors import InputError
 from ..io import write_atomic, write_json
 from ..tables import RUN_KEY as TABLE_RUN_KEY
 from ..tables import RUNS
-from .compact import CarriedRows, episode_chunks, write_compacted
+from .compact import episode_chunks, write_compacted
 from .plan import Batch, Run
 
 RUN_KEY = list(TABLE_RUN_KEY)
@@ -178,16 +179,11 @@ class RunStore:
         time (:mod:`.compact`). The record of ``inputs`` and ``code`` is removed first
         and written last, so tables a crash left half-written are never carried."""
         shards = [(b.episode, *self._paths(b), len(b.runs)) for b in batches]
-        rows = None
+        keep = None
         if carried:
-            part = {r.key: r.part for r in planned or []}
-            keep = set(carried)
-
-            def rows(file: str) -> CarriedRows:
-                return CarriedRows(self.folder / file, keep, part)
-
+            keep = (set(carried), {r.key: r.part for r in planned or []})
         self._set_record(None)
-        counts = write_compacted(self.folder, episode_chunks(shards), rows)
+        counts = write_compacted(self.folder, episode_chunks(shards), keep)
         if code is not None:
             self._set_record({"inputs": inputs, "code": code})
         return counts
