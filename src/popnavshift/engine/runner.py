@@ -139,7 +139,7 @@ def run_study(
                               executor_name=executor_name, address=address,
                               show_progress=show_progress)
     sim_seconds = time.perf_counter() - sim_started
-    runs_table, peds_table = store.compact(all_batches, runs, carried, inputs, code)
+    n_runs, n_peds = store.compact_files(all_batches, runs, carried, inputs, code)
     report.compacted = True
     report.seconds = time.perf_counter() - started
     write_manifest(
@@ -150,8 +150,8 @@ def run_study(
         sim_seconds,
         workers,
         executor_name,
-        len(runs_table),
-        len(peds_table),
+        n_runs,
+        n_peds,
         count_runs(study, episodes),
     )
     return report

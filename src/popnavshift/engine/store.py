@@ -6,7 +6,8 @@ atomically and both tagged with the batch id and run count in the Parquet
 metadata. On resume a batch counts as done only when both shards read back
 with the right tag and row count; anything else (missing, truncated, corrupt,
 foreign) is deleted and redone, never merged. At the end the shards are
-compacted, sorted by run key, into ``runs.parquet`` and ``pedestrians.parquet``;
+compacted, sorted by run key, into ``runs.parquet`` and ``pedestrians.parquet``
+(a few episodes at a time, :mod:`.compact`);
 a later run of the study carries over from them every run it still plans with
 unchanged inputs and code (:meth:`RunStore.carried`).
 """
@@ -21,10 +22,10 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from ..errors import InputError
-from ..io import write_atomic, write_json, write_parquet
-from ..populations.perturb import with_profile_set_columns
+from ..io import write_atomic, write_json
 from ..tables import RUN_KEY as TABLE_RUN_KEY
-from ..tables import RUNS, check_table
+from ..tables import RUNS
+from .compact import episode_chunks, write_compacted
 from .plan import Batch, Run
 
 RUN_KEY = list(TABLE_RUN_KEY)
@@ -169,37 +170,28 @@ class RunStore:
             stamps[self.RECORD] = record
         write_json(stamps, path)
 
+    def compact_files(self, batches: list[Batch], planned: list[Run] | None = None,
+                      carried: set[tuple] | None = None, inputs: str = "",
+                      code: dict[str, str] | None = None) -> tuple[int, int]:
+        """Write the two study tables, sorted by key: every batch's shards, plus the
+        ``carried`` runs (keys) of the present compacted tables, with their part as
+        ``planned`` now says; returns their row counts. Streamed a few episodes at a
+        time (:mod:`.compact`). The record of ``inputs`` and ``code`` is removed first
+        and written last, so tables a crash left half-written are never carried."""
+        shards = [(b.episode, *self._paths(b), len(b.runs)) for b in batches]
+        keep = None
+        if carried:
+            keep = (set(carried), {r.key: r.part for r in planned or []})
+        self._set_record(None)
+        counts = write_compacted(self.folder, episode_chunks(shards), keep)
+        if code is not None:
+            self._set_record({"inputs": inputs, "code": code})
+        return counts
+
     def compact(self, batches: list[Batch], planned: list[Run] | None = None,
                 carried: set[tuple] | None = None, inputs: str = "",
                 code: dict[str, str] | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
-        """The two study tables, sorted by key: every batch's shards, plus the
-        ``carried`` runs (keys) of the present compacted tables, with their part as
-        ``planned`` now says. The record of ``inputs`` and ``code`` is removed first and
-        written last, so tables a crash left half-written are never carried."""
-        frames_r = [pd.read_parquet(self._paths(b)[0]) for b in batches]
-        frames_p = [pd.read_parquet(self._paths(b)[1]) for b in batches]
-        if carried:
-            part = {r.key: r.part for r in planned or []}
-            for name, frames in (("runs.parquet", frames_r), ("pedestrians.parquet", frames_p)):
-                old = pd.read_parquet(self.folder / name)
-                keys = pd.Series(list(zip(*(old[c] for c in RUN_KEY), strict=True)),
-                                 index=old.index)
-                old = old[keys.isin(carried)].copy()
-                old["part"] = keys[old.index].map(part)
-                frames.append(old)
-        self._set_record(None)
-        runs = pd.concat(frames_r, ignore_index=True)
-        peds = pd.concat(frames_p, ignore_index=True)
-        if "error" not in runs.columns:  # shards written before the column existed
-            runs["error"] = None
-        runs["error"] = runs["error"].astype("string")  # all-None would be Arrow's null type
-        runs, peds = with_profile_set_columns(runs), with_profile_set_columns(peds)
-        runs = runs.sort_values(RUN_KEY, kind="stable").reset_index(drop=True)
-        peds = peds.sort_values([*RUN_KEY, "slot"], kind="stable").reset_index(drop=True)
-        check_table(runs, "runs")
-        check_table(peds, "pedestrians")
-        write_parquet(runs, self.folder / "runs.parquet")
-        write_parquet(peds, self.folder / "pedestrians.parquet")
-        if code is not None:
-            self._set_record({"inputs": inputs, "code": code})
-        return runs, peds
+        """:meth:`compact_files`, then the two tables read back (for small studies)."""
+        self.compact_files(batches, planned, carried, inputs, code)
+        return (pd.read_parquet(self.folder / "runs.parquet"),
+                pd.read_parquet(self.folder / "pedestrians.parquet"))
