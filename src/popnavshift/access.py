@@ -41,6 +41,8 @@ def load(study: str | Path, part: str | None = "main", table: str = "runs") -> p
 
 def part_run_ids(folder: Path, part: str) -> set[str]:
     """``run_id`` of every run that study part ``part`` plans."""
+    # lazy: `import popnavshift` (which imports this module) must not load the engine
+    # and navground; only a part selection needs them
     from .engine.plan import plan_study
     from .engine.study import study_from_dict
 

@@ -21,7 +21,18 @@ import pandas as pd
 
 from .errors import InputError, RespondentError
 from .io import write_json, write_parquet
+from .personas.load import load_personas
 from .personas.variants import MATCHED_N_DEFAULT, matched_ids
+from .populations.build import POPULATIONS, SPLIT_HALVES, attach_profiles, membership
+from .populations.figures import write_profile_figures
+from .populations.perturb import (
+    BLOCKS,
+    label,
+    reassign_profiles,
+    shuffle_columns,
+    single_block_responses,
+)
+from .profiles.mappings import build_profiles
 from .progress import progress_bar
 from .responses.collect import collect_responses
 from .responses.probes import PROBE_SET_HASH
@@ -72,7 +83,6 @@ def read_table(path: Path, stage: str) -> pd.DataFrame:
 
 
 def run_personas(folder: Path, s: PopulationSettings, target: Path | None = None) -> pd.DataFrame:
-    from .personas.load import load_personas
 
     personas, provenance = load_personas(
         s.source,
@@ -140,14 +150,11 @@ def _require_valid(responses: pd.DataFrame, invalid: pd.DataFrame, respondent,
 
 
 def run_profiles(folder: Path, s: PopulationSettings) -> pd.DataFrame:
-    from .profiles.mappings import build_profiles
 
     personas = read_table(folder / "personas.parquet", "personas")
     responses = read_table(folder / "responses.parquet", "responses")
     sets = [build_profiles(responses, personas, m) for m in s.mappings]
     if s.structure:
-        from .populations.perturb import BLOCKS, label, reassign_profiles, single_block_responses
-
         sets.append(reassign_profiles(sets[s.mappings.index("A")], s.seed))
         for block in BLOCKS:
             one = build_profiles(single_block_responses(responses, block), personas, "A")
@@ -161,8 +168,6 @@ def run_profiles(folder: Path, s: PopulationSettings) -> pd.DataFrame:
 
 
 def run_populations(folder: Path, s: PopulationSettings) -> pd.DataFrame:
-    from .populations.build import POPULATIONS, SPLIT_HALVES, attach_profiles, membership
-    from .populations.figures import write_profile_figures
 
     personas = read_table(folder / "personas.parquet", "personas")
     responses = read_table(folder / "responses.parquet", "responses")
@@ -184,8 +189,6 @@ def run_populations(folder: Path, s: PopulationSettings) -> pd.DataFrame:
             these_members = these_members[pair & these_members["persona_id"].isin(have)]
         tables.append(attach_profiles(these_members, these))
     if s.structure:
-        from .populations.perturb import shuffle_columns
-
         base_a = next(t for t in tables if t["mapping"].iloc[0] == "A")
         tables.append(shuffle_columns(base_a, s.seed))
     table = pd.concat(tables, ignore_index=True)

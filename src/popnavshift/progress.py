@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -11,6 +12,7 @@ from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
     Progress,
+    TaskProgressColumn,
     TextColumn,
     TimeElapsedColumn,
     TimeRemainingColumn,
@@ -44,7 +46,6 @@ def run_progress(total: int, enabled: bool = True) -> Iterator:
     if not enabled or total <= 0:
         yield lambda n=1: None
         return
-    from rich.progress import TaskProgressColumn
 
     with Progress(
         TextColumn("[bold]runs"),
@@ -56,8 +57,6 @@ def run_progress(total: int, enabled: bool = True) -> Iterator:
         TimeRemainingColumn(),
         console=console,
     ) as bar:
-        import time
-
         start = time.perf_counter()
         task = bar.add_task("runs", total=total, rate="")
         done = 0

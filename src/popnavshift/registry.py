@@ -3,7 +3,7 @@
 Each pluggable kind has one :class:`Registry`, next to its contract:
 
 * controllers — :data:`popnavshift.sim.controllers.CONTROLLERS`;
-* pedestrian backends — :data:`popnavshift.sim.pedestrians.BACKENDS`;
+* pedestrian backends — :data:`popnavshift.sim.backends.BACKENDS`;
 * respondents — :data:`popnavshift.responses.respondent.RESPONDENTS`;
 * mappings — :data:`popnavshift.profiles.mappings.MAPPINGS`.
 

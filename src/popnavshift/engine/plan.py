@@ -16,6 +16,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from ..episodes.specs import seed_set_id
+from ..errors import UnknownNameError
 from ..hashing import digest
 from ..tables import NO_ROBOT
 from .study import EpisodeSelection, Study
@@ -60,7 +61,6 @@ def select_episodes(selection: EpisodeSelection, episodes: Iterable) -> list:
     eps = list(episodes)
     if selection.ids is not None:
         by_id = {e.id: e for e in eps}
-        from ..errors import UnknownNameError
 
         for i in selection.ids:
             if i not in by_id:

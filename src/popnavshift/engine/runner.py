@@ -13,6 +13,7 @@ import json
 import platform
 import time
 from dataclasses import dataclass, field
+from importlib.metadata import version
 from pathlib import Path
 from typing import Any
 
@@ -214,7 +215,6 @@ def write_manifest(
 
 
 def _navground_version() -> str:
-    from importlib.metadata import version
 
     try:
         return version("navground")

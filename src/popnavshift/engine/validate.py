@@ -19,6 +19,11 @@ from collections.abc import Iterable, Sequence
 from typing import Any
 
 from ..errors import ConfigError, UnknownNameError
+from ..populations.perturb import BLOCKS, ProfileSet
+from ..profiles.mappings import MAPPINGS
+from ..responses.respondent import RESPONDENTS
+from ..sim.backends import BACKENDS
+from ..sim.controllers import CONTROLLERS
 from .plan import select_episodes
 from .study import EpisodeSelection, Study
 
@@ -62,8 +67,6 @@ def check_grid_values(selection: EpisodeSelection, episodes: Sequence, where: st
 
 
 def _check_names(study: Study) -> None:
-    from ..sim.backends import BACKENDS
-    from ..sim.controllers import CONTROLLERS
 
     controllers = {c for part in study.parts.values() for c in part.controllers}
     for controller in sorted(controllers):
@@ -82,9 +85,6 @@ def _check_names(study: Study) -> None:
 
 def known_mappings(study: Study) -> list[str]:
     """Profile-set labels the study's population stage can build."""
-    from ..populations.perturb import BLOCKS, ProfileSet
-    from ..profiles.mappings import MAPPINGS
-
     for mapping in study.mappings:
         if mapping not in MAPPINGS:
             raise UnknownNameError("mapping (study mappings)", mapping, MAPPINGS.names())
@@ -98,8 +98,6 @@ def known_mappings(study: Study) -> list[str]:
 
 def _check_respondent(name: str, options: dict[str, Any]) -> None:
     """Build the respondent (no call is made) and check its settings."""
-    from ..responses.respondent import RESPONDENTS
-
     respondent = RESPONDENTS.make(name, **options)
     validate = getattr(respondent, "validate", None)
     if callable(validate):

@@ -25,7 +25,7 @@ from .verdict import VERDICT_METRICS
 def render_png(card: Card, path: Path) -> Path:
     """Four panels: the three metrics per population by controller, and the reversal
     rates against each baseline with their intervals."""
-    import matplotlib
+    import matplotlib  # lazy: only drawing the card needs matplotlib (slow to import)
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

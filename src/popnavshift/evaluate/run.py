@@ -32,8 +32,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
+from ..analysis import episode_cells
+from ..analysis.replicates import seed_sets
 from ..engine.executors import execute
 from ..engine.plan import batches, plan_study
 from ..engine.rebuild import rebuild_run
@@ -48,11 +51,15 @@ from ..errors import ConfigError, InputError
 from ..hashing import digest
 from ..io import write_json
 from ..pipeline import read_table
+from ..sim.check import ControllerContractError, check_controller
 from ..sim.controllers import CONTROLLERS
 from ..sim.controllers.builtin import BUILTIN_CONTROLLERS
 from ..sim.controllers.registry import controller_id, parse_controller_id
 from ..tables import NO_ROBOT, RUN_KEY
 from ..version import __version__
+from ..viz.replay import render_svg
+from .card import card_tables
+from .card_page import write_card
 from .verdict import SAFETY_THRESHOLD
 
 BASELINES: tuple[str, ...] = BUILTIN_CONTROLLERS
@@ -105,8 +112,6 @@ def check(factory: Any) -> str:
     """Run :func:`check_controller`: a broken contract is a ConfigError; a controller
     that merely raises in the checker's small world is reported and let through,
     since its runs that raise are recorded as controller errors."""
-    from ..sim.check import ControllerContractError, check_controller
-
     try:
         check_controller(factory)
     except ControllerContractError as err:
@@ -248,14 +253,6 @@ def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0,
     """Write ``card.html`` and ``card.png`` into ``ev.out``; returns their paths.
     ``seed`` drives the bootstrap (the same seed gives the same intervals);
     ``safety_threshold`` is the share of collisions or errors that raises the banner."""
-    import numpy as np
-
-    from ..analysis import episode_cells
-    from ..analysis.replicates import seed_sets
-    from ..viz.replay import render_svg
-    from .card import card_tables
-    from .card_page import write_card
-
     n_sets = int(seed_sets(ev.runs).nunique())
     card = card_tables(ev.runs, ev.pedestrians, ev.controller, ev.baselines,
                        rng=np.random.default_rng(seed), n_boot=n_boot, seed_sets=n_sets,

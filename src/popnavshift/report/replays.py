@@ -19,8 +19,10 @@ import pandas as pd
 from ..analysis.delay import episode_cells
 from ..analysis.study import Analysis
 from ..engine.folder import StudyFolder, stored_pedestrians, study_seed
+from ..engine.rebuild import rebuild_run
 from ..errors import PopNavShiftError
 from ..tables import NO_ROBOT, RUN_KEY
+from ..viz.replay import write_replay
 
 REPLAY_METRICS = ("outcome", "robot_time", "robot_path_length", "robot_stop_time",
                   "robot_min_clearance", "ped_collisions", "world_collisions", "n_peds",
@@ -114,8 +116,6 @@ def run_differences(stored_run: pd.Series, stored_peds: pd.DataFrame, result) ->
 
 def resimulate(key: dict[str, str], populations: pd.DataFrame, seed: int, *, record: bool = True):
     """Simulate one stored run again from the episode id, the population table and the seed."""
-    from ..engine.rebuild import rebuild_run
-
     return rebuild_run(key, populations, seed, record=record)
 
 
@@ -134,8 +134,6 @@ def write_replays(study: StudyFolder, a: Analysis, runs: pd.DataFrame,
     report), ``reproduced`` (every stored column equal, bit for bit) and
     ``differences``; None with ``a.missing["replays"]`` set when impossible.
     """
-    from ..viz.replay import write_replay
-
     seed = study_seed(study.manifest)
     if n <= 0:
         return None

@@ -13,7 +13,7 @@ from typing import Any
 import pandas as pd
 
 from ..personas.variants import apply_variant
-from ..tables import check_table
+from ..tables import RESPONSES, check_table
 from .probes import PROBE_SET_HASH
 from .respondent import ProbeRequest, Progress, Respondent
 from .schema import answer_to_row
@@ -82,6 +82,5 @@ def collect_responses(
 
 
 def _response_columns() -> list[str]:
-    from ..tables import RESPONSES
 
     return RESPONSES.names

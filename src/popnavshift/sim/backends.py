@@ -80,7 +80,9 @@ class HLBackend:
         return asdict(self)
 
 
-BACKENDS: Registry[PedestrianBackend] = Registry("backend")
+BACKENDS: Registry[PedestrianBackend] = Registry(
+    "backend", requires=("behavior", "describe"), noun="pedestrian backend",
+    hint="a backend class has name, horizon, behavior(kinematics, radius) and describe()")
 BACKENDS.register("orca", ORCABackend)
 BACKENDS.register("hl", HLBackend)
 

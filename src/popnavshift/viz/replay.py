@@ -16,7 +16,9 @@ from typing import Any
 import matplotlib
 import numpy as np
 from jinja2 import Environment, select_autoescape
+from markupsafe import escape
 
+from ..errors import ConfigError
 from ..io import write_atomic, write_text
 
 STATE_COLOURS = {
@@ -134,8 +136,6 @@ def _hex(rgba) -> str:
 
 
 def _esc(text: str) -> str:
-    from markupsafe import escape
-
     return str(escape(text))
 
 
@@ -171,7 +171,7 @@ def _agent(
 
 def render_gif(traj: Mapping[str, Any], path: Path, title: str = "", stride: int = 2) -> Path:
     """An animated GIF via matplotlib + Pillow (written atomically)."""
-    matplotlib.use("Agg")
+    matplotlib.use("Agg")  # before pyplot is imported: no display here
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle
 
@@ -214,7 +214,7 @@ def render_gif(traj: Mapping[str, Any], path: Path, title: str = "", stride: int
         label.set_text(f"{title}  t = {traj['time'][s]:.1f} s")
         return circles
 
-    from PIL import Image
+    from PIL import Image  # Pillow comes with matplotlib; only a GIF needs it
 
     frames = []
     for i in range(len(steps)):  # draw each frame and grab the canvas as an image
@@ -279,6 +279,5 @@ def write_replay(
     if suffix in (".html", ".htm"):
         svg = write_text(render_svg(traj, title=title), out.with_suffix(".svg"))
         return [write_text(render_html(traj, metrics, title), out), svg]
-    from ..errors import ConfigError
 
     raise ConfigError(f"replay output {out}: use a .svg, .gif or .html file name")
