@@ -12,6 +12,7 @@ machine.
     .venv/bin/python benchmarks/bench_study.py                   # variant 1 only (1/3 grid)
     .venv/bin/python benchmarks/bench_study.py --fraction 1      # the whole main grid
     .venv/bin/python benchmarks/bench_study.py --study my.yaml --executor ray --workers 1 2
+    .venv/bin/python benchmarks/bench_study.py --executor local ray --workers 1 2   # side by side
 """
 
 from __future__ import annotations
@@ -99,7 +100,8 @@ def main() -> None:
     parser.add_argument("--fraction", type=float, default=1 / 3, help="share of the variants")
     parser.add_argument("--study", help="a study name or YAML file instead of the paper grid")
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
-    parser.add_argument("--executor", choices=("local", "ray"), default="local")
+    parser.add_argument("--executor", choices=("local", "ray"), nargs="+", default=["local"],
+                        help="one or both; every row's tables are compared with the first's")
     parser.add_argument("--address", help="Ray cluster address (default: a local instance)")
     parser.add_argument("--bare", action="store_true", help="also run the simulation bench")
     parser.add_argument("--json", type=Path, help="write the results here")
@@ -111,20 +113,23 @@ def main() -> None:
     try:
         run_stages(pops, population_settings(study), show_progress=False)
         rows = []
-        for w in args.workers:
-            row, folder = time_study(study, w, pops, args.executor, args.address)
-            rows.append(row)
-            folders.append(folder)
+        for executor in args.executor:
+            for w in args.workers:
+                row, folder = time_study(study, w, pops, executor, args.address)
+                rows.append(row)
+                folders.append(folder)
         identical = [same_tables(folders[0], f) for f in folders[1:]]
     finally:
         for f in [pops, *folders]:
             shutil.rmtree(f, ignore_errors=True)
     out: dict = {"study": study.name, "rows": rows,
                  "tables_identical_to_first_row": all(identical)}
-    if len(rows) >= 2:
-        first = rows[0]
-        out["scaling"] = {f"{first['workers']}_to_{r['workers']}":
-                          round(r["runs_per_s"] / first["runs_per_s"], 2) for r in rows[1:]}
+    out["scaling"] = {}
+    for executor in args.executor:  # runs/s against the same executor's first worker count
+        mine = [r for r in rows if r["executor"] == executor]
+        for r in mine[1:]:
+            out["scaling"][f"{executor} {mine[0]['workers']}_to_{r['workers']}"] = round(
+                r["runs_per_s"] / mine[0]["runs_per_s"], 2)
     if not args.study:
         full_grid_runs = 9984
         best = max(rows, key=lambda r: r["runs_per_s"])

@@ -96,3 +96,13 @@ def test_plan_prints_the_power_advice_of_a_pilot(study, tmp_path):
     bare = subprocess.run([sys.executable, "-m", "popnavshift", "plan", str(cfg), "--from",
                            str(tmp_path)], capture_output=True, text=True, timeout=120)
     assert bare.returncode == 0 and "no estimate yet" in bare.stdout + bare.stderr
+
+
+def test_every_html_id_of_the_report_is_unique(study):
+    """The table of contents links to each section by its id: no other element may
+    carry it (the respondent banner once took the respondent section's)."""
+    import re
+
+    page = (study / "report" / "index.html").read_text("utf-8")
+    ids = re.findall(r'\bid="([^"]+)"', page)
+    assert ids and len(ids) == len(set(ids)), sorted(i for i in ids if ids.count(i) > 1)
