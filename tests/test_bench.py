@@ -81,3 +81,24 @@ def test_bad_arguments_name_the_parameter():
 def test_synthetic_population_depends_on_seed():
     a, b = synthetic_population(0), synthetic_population(1)
     assert a.equals(synthetic_population(0)) and not a.equals(b)
+
+
+def test_every_profile_rule_names_a_function_that_exists():
+    """A module split must move its profile rules along (a stale rule silently files a
+    function's time under its caller's category)."""
+    import ast
+    from pathlib import Path
+
+    from popnavshift.sim.bench_profile import CATEGORY_RULES
+
+    package = Path(__file__).resolve().parents[1] / "src" / "popnavshift"
+    for category, suffix, names in CATEGORY_RULES:
+        if suffix in ("", "~"):  # built-ins
+            continue
+        path = package / suffix
+        assert path.exists(), (category, suffix)
+        if path.is_dir():
+            continue
+        defined = {n.name for n in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+                   if isinstance(n, ast.FunctionDef)}
+        assert names <= defined, (category, suffix, sorted(names - defined))

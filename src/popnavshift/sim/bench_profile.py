@@ -29,7 +29,7 @@ CATEGORY_RULES: tuple[tuple[str, str, frozenset[str]], ...] = (
     ("world build", "sim/run.py", frozenset({"resolve_controller"})),
     ("world build", "sim/slots.py", frozenset({"slot_profiles"})),
     ("world build", "sim/pedestrians.py", frozenset({"__init__"})),
-    ("navground update (C++)", "sim/bench.py", frozenset({"_world_update"})),
+    ("navground update (C++)", "sim/bench_profile.py", frozenset({"_world_update"})),
     # World.run of a quiet stretch (its recording callback included, see sim/quiet.py)
     ("navground update (C++)", "~",
      frozenset({"<built-in method navground.sim._navground_sim.run>"})),
