@@ -17,6 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
+from ..sim.controllers.builtin import BUILTIN_CONTROLLERS
 from ..tables import NO_ROBOT
 from .bootstrap import LEVEL, N_BOOT, rate_intervals
 from .delay import UNIT, cell_metrics, paired_delays
@@ -30,7 +31,6 @@ from .reversals import (
     reversal_rates,
 )
 
-BUILTIN_CONTROLLERS: tuple[str, ...] = ("reactive", "early_yield", "robot_orca")
 OUTCOMES: tuple[str, ...] = ("success", "pedestrian_collision", "world_collision", "timeout",
                             "controller_error")
 MAX_STUCK_SHARE = 0.05  # no-robot runs: more pedestrians than this never arriving is a flag

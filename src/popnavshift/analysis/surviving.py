@@ -21,6 +21,7 @@ from functools import partial
 import numpy as np
 import pandas as pd
 
+from ..sim.controllers.builtin import BUILTIN_CONTROLLERS
 from ..tables import NO_ROBOT
 from .delay import CELL_KEY, cell_metrics, episode_cells, paired_delays
 from .findings import TAIL_BAND
@@ -110,7 +111,7 @@ def surviving_findings(runs: pd.DataFrame, pedestrians: pd.DataFrame, *,
             return means[ctrl] - rest if highest else rest - means[ctrl]
         return f
 
-    if {"reactive", "early_yield", "robot_orca"} <= ctrls:
+    if set(BUILTIN_CONTROLLERS) <= ctrls:
         checks += [
             ("Reactive has the highest success rate", "success share gap to the next [pp]",
              lambda v: 100 * extreme("success_share", "reactive", True)(v), (0, np.inf)),
