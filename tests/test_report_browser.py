@@ -129,7 +129,7 @@ PROBE = """JSON.stringify({
     t => t.querySelectorAll("tbody tr").length),
   sections: Array.from(document.querySelectorAll("section")).map(s => s.id),
   scripts: document.scripts.length,
-  respondent: document.getElementById("respondent").textContent,
+  respondent: document.getElementById("respondent-note").textContent,
 })"""
 
 
