@@ -9,7 +9,7 @@ the response layer (:mod:`.pedestrians`) only; no Task is attached.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from typing import Any, Protocol
 
 from navground import core, sim
@@ -32,6 +32,15 @@ class PedestrianBackend(Protocol):
     def describe(self) -> dict[str, Any]: ...
 
 
+def _configured(behavior: core.Behavior, backend: Any) -> core.Behavior:
+    """``behavior`` with every field of the ``backend`` dataclass but its name set on it
+    (the fields are named as navground's behaviour properties), in field order."""
+    for field in fields(backend):  # not asdict: this runs for every pedestrian of every run
+        if field.name != "name":
+            setattr(behavior, field.name, getattr(backend, field.name))
+    return behavior
+
+
 @dataclass(frozen=True)
 class ORCABackend:
     """Ped-ORCA: navground ORCA on omnidirectional kinematics."""
@@ -43,12 +52,7 @@ class ORCABackend:
     safety_margin: float = 0.05  # [m]
 
     def behavior(self, kinematics: core.Kinematics, radius: float) -> core.Behavior:
-        b = core.behaviors.ORCABehavior(kinematics, radius)
-        b.horizon = self.horizon
-        b.time_horizon = self.time_horizon
-        b.static_time_horizon = self.static_time_horizon
-        b.safety_margin = self.safety_margin
-        return b
+        return _configured(core.behaviors.ORCABehavior(kinematics, radius), self)
 
     def describe(self) -> dict[str, Any]:
         return asdict(self)
@@ -67,14 +71,7 @@ class HLBackend:
     safety_margin: float = 0.05  # [m]
 
     def behavior(self, kinematics: core.Kinematics, radius: float) -> core.Behavior:
-        b = core.behaviors.HLBehavior(kinematics, radius)
-        b.horizon = self.horizon
-        b.tau = self.tau
-        b.eta = self.eta
-        b.aperture = self.aperture
-        b.resolution = self.resolution
-        b.safety_margin = self.safety_margin
-        return b
+        return _configured(core.behaviors.HLBehavior(kinematics, radius), self)
 
     def describe(self) -> dict[str, Any]:
         return asdict(self)
