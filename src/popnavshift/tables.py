@@ -212,16 +212,21 @@ POPULATIONS = declare(
     doc="one member of a population condition with its motion parameters",
 )
 
+#: an episode's cell and size, in the episodes table and repeated in every run row
+_CELL_COLUMNS = (
+    _col("width", "float", "walkable width", "m"),
+    _col("density", "float", "pedestrian density", "1/m²"),
+    _col("robot_speed", "float", "robot's maximum speed", "m/s"),
+    _col("variant", "int", "episode variant of the cell (1–3)"),
+    _col("n_peds", "int", "number of pedestrians"),
+)
+
 EPISODES = declare(
     "episodes",
     (
         _col("id", "str", "episode id <scene>-w<width>-d<density>-s<robot_speed>-v<variant>"),
         _col("scene", "str", "sidewalk, head_on, crossing, bottleneck or obstruction"),
-        _col("width", "float", "walkable width", "m"),
-        _col("density", "float", "pedestrian density", "1/m²"),
-        _col("robot_speed", "float", "robot's maximum speed", "m/s"),
-        _col("variant", "int", "episode variant of the cell (1–3)"),
-        _col("n_peds", "int", "number of pedestrians"),
+        *_CELL_COLUMNS,
         _col("seed", "int", "the episode's random seed (derived from the study seed)"),
     ),
     ("id",),
@@ -298,11 +303,7 @@ RUNS = declare(
     (
         *_RUN_COLUMNS,
         _col("scene", "str", "scene of the episode"),
-        _col("width", "float", "walkable width", "m"),
-        _col("density", "float", "pedestrian density", "1/m²"),
-        _col("robot_speed", "float", "robot's maximum speed", "m/s"),
-        _col("variant", "int", "episode variant of the cell (1–3)"),
-        _col("n_peds", "int", "number of pedestrians"),
+        *_CELL_COLUMNS,
         _col("outcome", "str", "the robot's first event: success, pedestrian_collision, "
              "world_collision, timeout, controller_error; none without a robot"),
         *ROBOT_METRICS,
