@@ -154,7 +154,6 @@ def run(
             f"{report_.reused:,} reused, {report_.seconds:.1f} s"
         )
     if report:
-        release_memory()  # the report's peak then starts from what the tables need
         _write_report(target)
     console.print(f"outputs in {say(target.resolve())}")
 
@@ -166,22 +165,6 @@ def report_cmd(
 ) -> None:
     """Write DIR/report/index.html with every table (CSV) and figure (PNG, SVG)."""
     _write_report(study_dir, n_boot=n_boot)
-
-
-def release_memory() -> None:
-    """Give the memory the simulation and compaction freed back to the system: Arrow's
-    pool and glibc's heap keep freed pages, and the report runs in this process (on the
-    paper study, `make run` peaked at 1.91 GB without this, the report alone at 1.6 GB)."""
-    import contextlib
-    import ctypes
-    import gc
-
-    import pyarrow as pa
-
-    gc.collect()
-    pa.default_memory_pool().release_unused()
-    with contextlib.suppress(OSError, AttributeError):  # glibc only
-        ctypes.CDLL("libc.so.6").malloc_trim(0)
 
 
 def _write_report(study_dir: Path, n_boot: int = 1000) -> None:
