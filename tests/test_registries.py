@@ -246,6 +246,21 @@ def test_the_worker_records_a_controller_error_and_goes_on(user_path):
     check_table(peds, "pedestrians")
 
 
+def test_a_repeated_controller_error_is_recorded_for_each_run(user_path):
+    """A run with the inputs of a failed one (a population with the same profiles)
+    fails the same way, and its row says so with the same message."""
+    twin = members().assign(population="twin")
+    runs = tuple(Run(EPISODE, p, "user_ctrls:RaisesNearPeds", "orca", "A", "main")
+                 for p in ("mixed", "twin"))
+    _, table, peds, simulated = run_batch(Batch(EPISODE, "orca", "A", runs),
+                                          Context(populations=pd.concat([members(), twin]),
+                                                  episode_seed=0))
+    assert simulated == 1 and peds.empty
+    assert list(table["outcome"]) == ["controller_error"] * 2
+    assert table["error"].nunique() == 1 and "too close" in table["error"].iloc[0]
+    assert list(table["population"]) == ["mixed", "twin"]
+
+
 def test_a_failed_result_has_the_columns_and_dtypes_of_a_run():
     spec, members = slots()
     ok = simulate(spec, members, "robot_orca")

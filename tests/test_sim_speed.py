@@ -126,3 +126,27 @@ def test_a_wall_contact_inside_a_stretch_reruns_the_run(stretch_log):
     assert fast.run["outcome"] == "world_collision"
     assert json.dumps(rows(fast)) == json.dumps(rows(slow))
     assert stretch_log["not_quiet"] == 1
+
+
+def test_a_batch_simulates_runs_with_equal_inputs_once_and_gives_each_its_own_rows():
+    """Two populations with the same profiles under other persona ids (and a third that
+    differs): the twin's runs are copied, not simulated, and every row is the row of
+    that run simulated on its own, in its own batch."""
+    mixed = members("mixed", 30, 0.6)
+    twin = mixed.assign(population="twin", persona_id=[f"t{i:02d}" for i in range(30)])
+    population = pd.concat([mixed, twin, members("slow", 30, 0.6)])
+    spec = get_episode("sidewalk-w1.8-d0.2-s1.0-v1")
+    pops, ctrls = ("mixed", "twin", "slow"), ("none", "robot_orca", "reactive")
+    runs = tuple(Run(spec.id, p, c, "orca", "A", "main") for p in pops for c in ctrls)
+    context = Context(populations=population, episode_seed=0)
+    _, run_table, ped_table, simulated = run_batch(Batch(spec.id, "orca", "A", runs), context)
+    assert simulated == 6
+    for p in pops:
+        alone = tuple(r for r in runs if r.population == p)
+        _, own_runs, own_peds, n = run_batch(Batch(spec.id, "orca", "A", alone), context)
+        assert n == 3
+        mine = run_table[run_table["population"] == p].reset_index(drop=True)
+        assert mine.equals(own_runs)
+        assert ped_table[ped_table["population"] == p].reset_index(drop=True).equals(own_peds)
+    twin_ids = set(ped_table.loc[ped_table["population"] == "twin", "persona_id"])
+    assert twin_ids and all(i.startswith("t") for i in twin_ids)

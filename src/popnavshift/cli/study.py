@@ -149,8 +149,10 @@ def run(
         import pandas as pd
 
         print_sizes(pd.read_parquet(target / "populations.parquet"))
+        repeats = report_.executed - report_.simulated
+        same = f" ({repeats:,} repeated an identical run)" if repeats else ""
         console.print(
-            f"[bold green]done[/]: {report_.executed:,} runs executed, "
+            f"[bold green]done[/]: {report_.executed:,} runs executed{same}, "
             f"{report_.reused:,} reused, {report_.seconds:.1f} s"
         )
     if report:

@@ -1,6 +1,6 @@
 """Executors: run batches in local worker processes or as Ray tasks.
 
-Both yield ``(batch id, runs, pedestrians, seconds)`` as batches finish, keep at
+Both yield ``(batch id, runs, pedestrians, runs simulated)`` as batches finish, keep at
 most ``2 × workers`` batches in flight (bounded memory), and produce identical
 tables: the simulation of a batch depends only on the batch and the context.
 Processes, not threads: Python behaviours hold the GIL. :func:`execute` is the
@@ -21,7 +21,7 @@ from .plan import Batch
 from .store import RunStore
 from .worker import Context, init_worker, run_batch
 
-Result = tuple[str, object, object, float]
+Result = tuple[str, object, object, int]
 
 
 def run_local(batches: Sequence[Batch], context: Context, workers: int) -> Iterator[Result]:
@@ -122,20 +122,23 @@ EXECUTORS: dict[str, Callable[..., Iterator[Result]]] = {"local": run_local, "ra
 
 def execute(todo: Sequence[Batch], store: RunStore, context: Context, workers: int, *,
             executor_name: str = "local", address: str | None = None,
-            show_progress: bool = True) -> int:
+            show_progress: bool = True) -> tuple[int, int]:
     """Run the ``todo`` batches with the executor ``executor_name`` (``address``: a Ray
     cluster), writing each batch's shards to ``store`` as it finishes (an interrupted
-    call loses only the batches in flight); returns the number of runs executed."""
+    call loses only the batches in flight); returns the number of runs executed and
+    how many of them were simulated (the others repeated an identical run of their
+    batch, see :class:`.worker.RunMemo`)."""
     if executor_name not in EXECUTORS:
         raise UnknownNameError("executor", executor_name, EXECUTORS)
     kwargs = {"address": address} if executor_name == "ray" else {}
     by_id = {b.id: b for b in todo}
-    executed = 0
+    executed = simulated = 0
     with run_progress(sum(len(b.runs) for b in todo), show_progress) as advance:
-        for batch_id, runs, peds, _seconds in EXECUTORS[executor_name](todo, context, workers,
-                                                                        **kwargs):
+        for batch_id, runs, peds, n_simulated in EXECUTORS[executor_name](todo, context, workers,
+                                                                           **kwargs):
             batch = by_id[batch_id]
             store.write_batch(batch, runs, peds)
             executed += len(batch.runs)
+            simulated += n_simulated
             advance(len(batch.runs))
-    return executed
+    return executed, simulated

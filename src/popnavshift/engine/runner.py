@@ -44,6 +44,7 @@ class RunReport:
     planned: int = 0
     reused: int = 0
     executed: int = 0
+    simulated: int = 0  # of the executed runs; the others repeated an identical run
     seconds: float = 0.0
     stages_run: list[str] = field(default_factory=list)
     compacted: bool = False  # the study tables were (re)written
@@ -136,9 +137,9 @@ def run_study(
         return report
 
     sim_started = time.perf_counter()
-    report.executed = execute(todo, store, Context(populations, study.seed), workers,
-                              executor_name=executor_name, address=address,
-                              show_progress=show_progress)
+    report.executed, report.simulated = execute(
+        todo, store, Context(populations, study.seed), workers,
+        executor_name=executor_name, address=address, show_progress=show_progress)
     sim_seconds = time.perf_counter() - sim_started
     n_runs, n_peds = store.compact_files(all_batches, runs, carried, inputs, code)
     report.compacted = True
@@ -205,6 +206,7 @@ def write_manifest(
                 "total_s": round(report.seconds, 2),
                 "simulation_s": round(sim_seconds, 2),
                 "runs_executed": report.executed,
+                "runs_simulated": report.simulated,
                 "runs_reused": report.reused,
                 "workers": workers,
                 "executor": executor_name,

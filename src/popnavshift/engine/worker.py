@@ -4,6 +4,14 @@ A run whose controller raises is recorded with outcome ``controller_error`` and 
 message in the ``error`` column (:func:`popnavshift.sim.run.failed_result`); the
 batch and the study go on. Any other exception is a bug and stops the study.
 
+A run is simulated from its episode, controller, backend and the (n, 7) slot
+profiles alone: two runs of a batch with the same controller and bit-equal slot
+profiles are the same simulation (a swap permutation that flipped none of an
+episode's few pedestrians, a homogeneous population, a perturbation that leaves a
+population unchanged). The batch simulates such a run once and gives the others
+its rows with their own keys and persona ids (:class:`RunMemo`); the tables are
+those of simulating each run.
+
 Workers receive plain data (a batch of run keys, the populations table, the
 episode seed), never navground worlds: worlds do not survive pickling
 (navground 0.7.0 drops targets and Python scenarios).
@@ -23,7 +31,7 @@ import pandas as pd
 
 from ..episodes.specs import get_episode, seed_set_of
 from ..populations.perturb import ProfileSet
-from ..sim.run import ControllerError, failed_result, pedestrian_table, simulate
+from ..sim.run import ControllerError, SimResult, failed_result, pedestrian_table, simulate
 from ..sim.slots import SlotProfiles, profiles_of_members
 from ..tables import NO_ROBOT
 from .plan import Batch
@@ -92,13 +100,43 @@ def _members(ctx: Context, mapping: str, population: str) -> tuple[np.ndarray, l
 _MEMBERS: tuple[Context, dict] | None = None
 
 
+class RunMemo:
+    """The results of a batch's simulations by what they depend on: the controller id,
+    the backend and the bytes of the slot profiles (the episode is the batch's)."""
+
+    def __init__(self) -> None:
+        self.results: dict[tuple[str, str, bytes], tuple[SimResult, str | None]] = {}
+        self.simulated = 0
+
+    def run(self, spec, slots: SlotProfiles, controller: str,
+            backend: str) -> tuple[SimResult, str | None]:
+        """(result, error) of ``controller`` on ``slots``: simulated the first time,
+        copied (with ``slots``' persona ids) after."""
+        key = (controller, backend, slots.values.tobytes())
+        hit = self.results.get(key)
+        if hit is None:
+            self.simulated += 1
+            ctrl = None if controller == NO_ROBOT else controller
+            try:
+                hit = simulate(spec, slots, ctrl, backend), None
+            except ControllerError as exc:  # one bad run is an outcome, not the end
+                hit = failed_result(spec, controller, backend), str(exc)
+            self.results[key] = hit
+            return hit
+        result, error = hit
+        if not error:  # a failed run has no pedestrian rows
+            result = SimResult(result.run, {**result.ped_columns, "persona_id": slots.persona_ids})
+        return result, error
+
+
 def run_batch(
     batch: Batch, context: Context | None = None
-) -> tuple[str, pd.DataFrame, pd.DataFrame, float]:
-    """Simulate every run of ``batch``; returns (batch id, runs, pedestrians, seconds)."""
+) -> tuple[str, pd.DataFrame, pd.DataFrame, int]:
+    """Simulate every run of ``batch``; returns (batch id, runs, pedestrians, number
+    of runs simulated: the others repeated one of them, see :class:`RunMemo`)."""
     ctx = context or _CONTEXT
     assert ctx is not None, "worker used before init_worker"
-    started = time.perf_counter()
+    memo = RunMemo()
     profile_set = ProfileSet.parse(batch.mapping).columns()  # one profile set per batch
     spec = get_episode(batch.episode, seed=ctx.episode_seed)
     slots: dict[str, SlotProfiles] = {}  # per population: the same for every controller
@@ -108,12 +146,7 @@ def run_batch(
         if run.population not in slots:
             values, ids = _members(ctx, batch.mapping, run.population)
             slots[run.population] = profiles_of_members(spec, values, ids)
-        ctrl = None if run.controller == NO_ROBOT else run.controller
-        error = None
-        try:
-            result = simulate(spec, slots[run.population], ctrl, run.backend)
-        except ControllerError as exc:  # one bad run is an outcome, not the end of the study
-            result, error = failed_result(spec, run.controller, run.backend), str(exc)
+        result, error = memo.run(spec, slots[run.population], run.controller, run.backend)
         keys = {
             "part": run.part,
             "episode": run.episode,
@@ -131,6 +164,6 @@ def run_batch(
             ped_keys.setdefault(k, []).append(value)
     runs = pd.DataFrame(run_rows)
     if not ped_columns:
-        return batch.id, runs, pd.DataFrame(), time.perf_counter() - started
+        return batch.id, runs, pd.DataFrame(), memo.simulated
     peds = pedestrian_table(ped_columns, ped_keys)
-    return batch.id, runs, peds, time.perf_counter() - started
+    return batch.id, runs, peds, memo.simulated
