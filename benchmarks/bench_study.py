@@ -1,6 +1,7 @@
 """Time a study (the paper's main grid, a fraction of it, or any study file) on N workers.
 
-Prints, per worker count: runs/s (wall clock), the CPU time per run (workers and
+Prints, per worker count: runs/s (wall clock), how many of the runs were simulated
+(a batch simulates runs with equal inputs once), the CPU time per run (workers and
 parent, local executor only: Ray's workers are not our child processes), the
 scaling from the first to the last worker count, peak memory, and whether every
 row's study tables are identical to the first row's (a local Ray instance is
@@ -76,6 +77,7 @@ def time_study(study, workers: int, populations_from: Path, executor: str,
         "executor": executor,
         "workers": workers,
         "runs": report.executed,
+        "runs_simulated": report.simulated,  # the others repeated an identical run
         "seconds": round(seconds, 2),
         "runs_per_s": round(report.executed / seconds, 1),
         "minutes": round(seconds / 60, 2),

@@ -386,3 +386,11 @@ def reactive_command(x, y, th, gx, gy, cfg, peds, walls, discs):
     if best == -np.inf:
         return 0.0, 0.0, 2
     return best_v, best_w, 1
+
+
+@njit(cache=True)
+def reactive_pose_command(pose, goal, cfg, peds, walls, discs):
+    """:func:`reactive_command` for the robot's float32 ``pose`` (x, y, θ) and ``goal``
+    (2,): the loop driver's call, without unpacking them in Python first."""
+    return reactive_command(np.float64(pose[0]), np.float64(pose[1]), np.float64(pose[2]),
+                            goal[0], goal[1], cfg, peds, walls, discs)

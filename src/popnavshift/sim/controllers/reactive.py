@@ -23,7 +23,13 @@ import numpy as np
 from navground import core, sim
 
 from ._params import Param, require_two_wheels, resolve_params
-from ._rollout import REACTIVE_CFG, neighbors_array, reactive_command, static_arrays
+from ._rollout import (
+    REACTIVE_CFG,
+    neighbors_array,
+    reactive_command,
+    reactive_pose_command,
+    static_arrays,
+)
 
 MODES = ("go", "adjust", "stop")
 
@@ -141,19 +147,23 @@ class ReactiveDriver:
         # decide()'s arguments, unpacked once: step() runs every control step
         self._cfg, (self._walls, self._discs) = constants(behavior, self.params, dt,
                                                           static_arrays(world))
-        gx, gy = cast(np.ndarray, behavior.target.position).tolist()
-        self._goal = (gx, gy)
+        self._goal = np.array(cast(np.ndarray, behavior.target.position), dtype=np.float64)
         self._controller = robot.controller
         self._last: tuple[float, float] | None = None
+        # one command object, refilled: navground copies it (building a Twist2 costs 1 us)
+        self._cmd = core.Twist2((0.0, 0.0), 0.0, _RELATIVE)
+        self._velocity = np.zeros(2)
 
     def step(self, step: int, pose: np.ndarray, peds: np.ndarray, ids: np.ndarray) -> None:
-        x, y, theta = pose.tolist()
-        gx, gy = self._goal
-        v, w, mode = reactive_command(x, y, theta, gx, gy, self._cfg, peds, self._walls,
-                                      self._discs)  # decide(), inlined
+        v, w, mode = reactive_pose_command(pose, self._goal, self._cfg, peds, self._walls,
+                                           self._discs)  # decide(), inlined
         self.mode_counts[MODES[mode]] += 1
         if (v, w) != self._last:
-            self._controller.follow_manual_cmd(core.Twist2((v, 0.0), w, _RELATIVE))
+            cmd = self._cmd
+            self._velocity[0] = v
+            cmd.velocity = self._velocity  # type: ignore[assignment]  # the stub says float32
+            cmd.angular_speed = w
+            self._controller.follow_manual_cmd(cmd)
             self._last = (v, w)
 
 
