@@ -217,7 +217,6 @@ def write_manifest(
 
 
 def _navground_version() -> str:
-
     try:
         return version("navground")
     except Exception:

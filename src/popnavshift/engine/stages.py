@@ -85,8 +85,6 @@ STAGES: tuple[Stage, ...] = (
           lambda folder, s, _progress: run_populations(folder, s)),
     Stage("episodes", "episodes.parquet", None, lambda s: [s.seed], _write_episodes),
 )
-#: the tables of the runs, compacted from their batches' shards (:mod:`.store`)
-RUN_TABLES: tuple[str, ...] = ("runs.parquet", "pedestrians.parquet")
 
 
 def stage_stamps(s: PopulationSettings) -> dict[str, str]:

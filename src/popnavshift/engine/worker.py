@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..episodes.specs import get_episode, seed_set_of
+from ..episodes.specs import EpisodeSpec, get_episode, seed_set_of
 from ..populations.perturb import ProfileSet
 from ..sim.run import ControllerError, SimResult, failed_result, pedestrian_table, simulate
 from ..sim.slots import SlotProfiles, profiles_of_members
@@ -106,16 +106,19 @@ class RunMemo:
 
     def __init__(self) -> None:
         self.results: dict[tuple[str, str, bytes], tuple[SimResult, str | None]] = {}
-        self.simulated = 0
 
-    def run(self, spec, slots: SlotProfiles, controller: str,
+    @property
+    def simulated(self) -> int:
+        """How many runs were simulated: one per distinct key."""
+        return len(self.results)
+
+    def run(self, spec: EpisodeSpec, slots: SlotProfiles, controller: str,
             backend: str) -> tuple[SimResult, str | None]:
         """(result, error) of ``controller`` on ``slots``: simulated the first time,
         copied (with ``slots``' persona ids) after."""
         key = (controller, backend, slots.values.tobytes())
         hit = self.results.get(key)
         if hit is None:
-            self.simulated += 1
             ctrl = None if controller == NO_ROBOT else controller
             try:
                 hit = simulate(spec, slots, ctrl, backend), None

@@ -156,7 +156,7 @@ class ReactiveDriver:
 
     def step(self, step: int, pose: np.ndarray, peds: np.ndarray, ids: np.ndarray) -> None:
         v, w, mode = reactive_pose_command(pose, self._goal, self._cfg, peds, self._walls,
-                                           self._discs)  # decide(), inlined
+                                           self._discs)  # decide(), on the float32 pose
         self.mode_counts[MODES[mode]] += 1
         if (v, w) != self._last:
             cmd = self._cmd
