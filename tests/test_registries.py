@@ -33,8 +33,8 @@ import math
 from navground import core
 
 
-class RaisesNearPeds(core.Behavior, name="TestPluginRaisesNearPeds"):
-    """Straight to the goal; raises once a pedestrian is within 1 m of clearance."""
+class Sensing(core.Behavior):
+    """A behaviour that bounded sensing fills (what the plug-ins below share)."""
 
     def __init__(self, kinematics=None, radius=0.0):
         core.Behavior.__init__(self, kinematics, radius)
@@ -42,6 +42,10 @@ class RaisesNearPeds(core.Behavior, name="TestPluginRaisesNearPeds"):
 
     def get_environment_state(self):
         return self._state
+
+
+class RaisesNearPeds(Sensing, name="TestPluginRaisesNearPeds"):
+    """Straight to the goal; raises once a pedestrian is within 1 m of clearance."""
 
     def compute_cmd_internal(self, time_step):
         x, y = self.position
@@ -51,14 +55,7 @@ class RaisesNearPeds(core.Behavior, name="TestPluginRaisesNearPeds"):
         return self.cmd_twist_towards_point(self.target.position, self.optimal_speed, time_step)
 
 
-class Infeasible(core.Behavior, name="TestPluginInfeasible"):
-    def __init__(self, kinematics=None, radius=0.0):
-        core.Behavior.__init__(self, kinematics, radius)
-        self._state = core.GeometricState()
-
-    def get_environment_state(self):
-        return self._state
-
+class Infeasible(Sensing, name="TestPluginInfeasible"):
     def compute_cmd_internal(self, time_step):
         return core.Twist2((5.0, 0.0), 0.0, core.Frame.relative)
 
