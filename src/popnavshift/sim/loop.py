@@ -15,6 +15,7 @@ from typing import cast
 
 import numpy as np
 from navground import sim
+from numba import njit
 
 from ..episodes.specs import EpisodeSpec
 from .constants import (
@@ -26,7 +27,7 @@ from .constants import (
     ROBOT_SENSING_RANGE,
 )
 from .controllers import LoopDriver
-from .controllers._rollout import sense_neighbors
+from .controllers._rollout import sense_neighbors, sense_positions, sense_velocities
 from .pedestrians import ResponseLayer, advance
 from .quiet import NotQuiet, quiet_steps, replay_quiet, robot_touched
 from .trace import Trace
@@ -70,9 +71,12 @@ class StepLoop:
             self.initial_poses = np.array(
                 [[*a.position, a.orientation] for a in sw.world.agents], dtype=np.float64
             ).reshape(na, 3)
-        # what the driver senses: the neighbours' rows and slots
+        # what the driver senses: the neighbours' rows and slots, and its views of
+        # them for each number sensed; the robot's pose
         self.sensed = np.empty((n, 5))
         self.sensed_ids = np.empty(n, np.int64)
+        self.sensed_views = [(self.sensed[:m], self.sensed_ids[:m]) for m in range(n + 1)]
+        self.robot_pose = np.empty(3, np.float32)
 
     def execute(self) -> Trace:
         """Step until the limit, or until the robot is done (or absent) and all peds left.
@@ -112,6 +116,8 @@ class StepLoop:
             tr.arrival_step
         prm, fst, ist, speed = layer.prm, layer.fst, layer.ist, self.spec.robot_speed
         driver_quiet, next_check = self.driver_quiet, 0
+        sensed, sensed_ids, views = self.sensed, self.sensed_ids, self.sensed_views
+        robot_pose = self.robot_pose
         robot_in = robot_active = self.robot_in
         while True:
             if flags is not None:
@@ -135,9 +141,15 @@ class StepLoop:
                 collisions = world.collisions
                 if collisions or self.contacts:
                     robot_active = self._robot_contacts(step, collisions)
-            poses = rec.poses[-1]
-            k, s, n_speed, n_target = advance(step, poses, pos, robot_in, robot_active, goal,
-                                              active, fracs, arrival_step, *packed)
+            if driver is None:
+                k, s, n_speed, n_target = advance(step, rec.poses[-1], pos, robot_in,
+                                                  robot_active, goal, active, fracs,
+                                                  arrival_step, *packed)
+                m = -1
+            else:  # and what the driver senses before the next step, if it decides then
+                k, s, n_speed, n_target, m = advance_driven(
+                    step, rec.poses, pos, robot_in, robot_active, goal, active, fracs,
+                    arrival_step, *packed, sensed, sensed_ids, robot_pose)
             if k:
                 for i in exits_crossed[:k]:
                     remove_agent(peds[i], int(i))
@@ -147,8 +159,10 @@ class StepLoop:
                 robot_in = robot_active = False
             if n_speed or n_target:
                 layer.write(n_speed, n_target)
-            if driver is not None and robot_active and step < MAX_STEPS:
-                self._drive(step + 1, poses, rec.twists[-1])
+            if m >= 0:
+                if m:
+                    sense_velocities(rec.twists[-1], sensed, sensed_ids, m)
+                driver.step(step + 1, robot_pose, *views[m])  # type: ignore[union-attr]
         tr.steps = step
         if tr.has_robot and tr.outcome == "none":
             tr.outcome, tr.outcome_step = "timeout", step
@@ -217,6 +231,28 @@ class StepLoop:
             tr.outcome_step = step
         return set(now)
 
+
+
+@njit(cache=True)
+def advance_driven(step, record, pos, robot_on, robot_active, goal, active, fracs, arrival_step,
+                   prm, fst, ist, buf, consts, walls, obstacles, sensed, sensed_ids, robot_pose):
+    """:func:`.pedestrians.advance` on the last row of the poses ``record`` (steps,
+    agents, 3), then, if the loop driver decides before the next step (the robot is
+    still active and the run goes on), what it senses: the robot's pose into
+    ``robot_pose`` (3,) and the sensed pedestrians' positions into ``sensed`` and
+    ``sensed_ids`` (:func:`.controllers._rollout.sense_positions`). Returns
+    :func:`advance`'s four values and the number sensed, or −1 when no decision is due.
+    One call instead of three: each call and each argument costs the loop time."""
+    poses = record[record.shape[0] - 1]
+    k, s, n_speed, n_target = advance(step, poses, pos, robot_on, robot_active, goal, active,
+                                      fracs, arrival_step, prm, fst, ist, buf, consts, walls,
+                                      obstacles)
+    m = -1
+    if robot_active and s < 0.0 and step < MAX_STEPS:
+        n = active.shape[0]
+        robot_pose[:] = poses[n]
+        m = sense_positions(poses, n, active, ROBOT_SENSING_RANGE, sensed, sensed_ids)
+    return k, s, n_speed, n_target, m
 
 
 def _initial_contacts(spec: EpisodeSpec, sw: SimWorld) -> set:

@@ -24,7 +24,7 @@ from numba import njit
 
 from ..episodes.specs import PED_RADIUS
 from .constants import DT, ROBOT_SENSING_RANGE
-from .controllers._rollout import sense_neighbors
+from .controllers._rollout import sense_positions
 from .pedestrians import SENSE_RANGE, advance
 
 MARGIN = 0.3  # [m] kept free beyond the speed bound: collision pushes, float32 poses
@@ -82,7 +82,7 @@ def replay_quiet(step, poses, pos, robot_on, robot_active, goal, active, fracs, 
     whether every one of them was quiet: no exit crossed, no goal entered, no
     navground write, and (``driven``: a loop driver decides while the robot is
     active) nobody the robot senses (``sensed``, ``sensed_ids``: scratch of
-    :func:`.controllers._rollout.sense_neighbors`)."""
+    :func:`.controllers._rollout.sense_positions`)."""
     n = active.shape[0]
     for j in range(poses.shape[0]):
         k, s, n_speed, n_target = advance(step + j + 1, poses[j], pos, robot_on, robot_active,
@@ -90,8 +90,8 @@ def replay_quiet(step, poses, pos, robot_on, robot_active, goal, active, fracs, 
                                           consts, walls, obstacles)
         if k or s >= 0.0 or n_speed or n_target:
             return False
-        if driven and sense_neighbors(poses[j], poses[j], n, active, ROBOT_SENSING_RANGE,
-                                      sensed, sensed_ids):
+        if driven and sense_positions(poses[j], n, active, ROBOT_SENSING_RANGE, sensed,
+                                      sensed_ids):
             return False
     return True
 

@@ -69,7 +69,8 @@ class LoopDriver(Protocol):
     * ``step(step, pose, peds, ids)`` — before navground step ``step`` (from 1):
       the robot's ``pose`` (x, y, θ), the sensed neighbours ``peds`` (N, 5: x, y,
       vx, vy, radius) and their slots ``ids`` (N,), as float32 values of the
-      state navground's own sensing reads at that step.
+      state navground's own sensing reads at that step. The arrays are the loop's
+      buffers, refilled every step: copy what must outlive the call.
     * ``quiet() -> bool`` (optional) — True when a step with nobody sensed would
       change nothing; then the loop may let navground run such steps without
       calling :meth:`step` (:mod:`popnavshift.sim.quiet`). A driver without it

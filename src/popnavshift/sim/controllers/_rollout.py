@@ -27,6 +27,7 @@ EMPTY_PEDS = np.zeros((0, 5))
 EMPTY_WALLS = np.zeros((0, 4))
 EMPTY_DISCS = np.zeros((0, 3))
 _ESCAPE_EPS = 1e-6  # [m] tolerance of the "do not get closer" rule
+_BOUND_SLACK = 1e-9  # a sampled arc is skipped if its score bound is this far below the best
 
 
 # ---------------------------------------------------------------- navground -> arrays
@@ -74,6 +75,16 @@ def sense_neighbors(poses, twists, robot, active, reach, out, ids):
     and their slots into ``ids``, in slot order; returns their number. Every
     kernel that reads them is order-free (minima and per-row tests).
     """
+    m = sense_positions(poses, robot, active, reach, out, ids)
+    sense_velocities(twists, out, ids, m)
+    return m
+
+
+@njit(cache=True, inline="always")
+def sense_positions(poses, robot, active, reach, out, ids):
+    """:func:`sense_neighbors` without the velocities: x, y and radius of each row of
+    ``out``, the slots in ``ids``; returns their number. The stepping loop reads the
+    step's twists only when somebody is sensed (:func:`sense_velocities`)."""
     rx, ry = poses[robot, 0], poses[robot, 1]
     radius = np.float32(PED_RADIUS)
     limit = np.float32(reach) + radius
@@ -84,11 +95,17 @@ def sense_neighbors(poses, twists, robot, active, reach, out, ids):
         dx, dy = poses[i, 0] - rx, poses[i, 1] - ry
         if np.sqrt(dx * dx + dy * dy) < limit:
             out[m, 0], out[m, 1] = poses[i, 0], poses[i, 1]
-            out[m, 2], out[m, 3] = twists[i, 0], twists[i, 1]
             out[m, 4] = radius
             ids[m] = i
             m += 1
     return m
+
+
+@njit(cache=True)
+def sense_velocities(twists, out, ids, m):
+    """The velocity columns of the ``m`` rows :func:`sense_positions` wrote."""
+    for j in range(m):
+        out[j, 2], out[j, 3] = twists[ids[j], 0], twists[ids[j], 1]
 
 
 # ---------------------------------------------------------------------- geometry
@@ -350,39 +367,80 @@ def reactive_command(x, y, th, gx, gy, cfg, peds, walls, discs):
                           rot_tau, tol, dt, xs, ys)
     if sweep(xs, ys, radius, tracks, active, movers, near_walls, thr, cap)[0]:
         return v0, w0, 0
+    return _best_arc(x, y, th, gx, gy, cfg, peds, walls, discs, tracks, active, movers,
+                     near_walls, thr)
+
+
+@njit(cache=True)
+def _best_arc(x, y, th, gx, gy, cfg, peds, walls, discs, tracks, active, movers, near_walls,
+              thr):
+    """The sampling step of :func:`reactive_command`: the best free arc of the grid
+    (mode 1) or a stop (mode 2).
+
+    The grid's winner is the first arc, in grid order (speed levels up, then turn
+    rates), with the highest score ``progress + heading + clearance + sight``, each
+    weighted; heading, clearance and sight are at most their weights (cosine; capped
+    at ``cap`` and divided by it), and progress is at most the level's speed over
+    ``v_top`` (the arc is that long). Branch and bound: speed levels are searched
+    from the fastest down, so a level whose bound cannot beat the best score found is
+    skipped with every slower one, and within a level an arc whose bound with its
+    actual progress and heading cannot beat it skips the sweep and the sight line.
+    Ties go to the earlier arc in grid order. The weights are not negative and
+    rounding is monotonic, so a score exceeds its bound by a few ulps at most;
+    bounds are compared with a slack of :data:`_BOUND_SLACK`: the winner is the
+    grid's, bit for bit.
+    """
+    tol, v_top, wheel_max, axis, w_max = cfg[1], cfg[2], cfg[3], cfg[4], cfg[5]
+    radius, buffer, dt, cap, sight, weights = cfg[7], cfg[8], cfg[9], cfg[13], cfg[14], cfg[15:]
+    n_steps, n_v, n_w = int(cfg[10]), int(cfg[11]), int(cfg[12])
+    horizon = n_steps * dt
     d0 = math.hypot(gx - x, gy - y)
     reach = max(v_top * horizon, 1e-9)
     w_turn = min(w_max, math.pi / horizon)  # at most half a turn per rollout
-    best, best_v, best_w = -np.inf, 0.0, 0.0
+    xs, ys = np.empty(n_steps + 1), np.empty(n_steps + 1)
     cos_th, sin_th = np.empty((n_w, n_steps)), np.empty((n_w, n_steps))
     th_end = np.empty(n_w)
     headings_of = -1.0  # the turn-rate limit the headings were computed for
-    for i in range(n_v):
+    rest = weights[2] + weights[3] + weights[1]  # heading, clearance and sight at most
+    best, best_v, best_w, best_a = -np.inf, 0.0, 0.0, n_v * n_w
+    for i in range(n_v - 1, -1, -1):
         v = v_top * i / max(n_v - 1, 1)
+        if weights[0] * (v * horizon) / reach + rest < best - _BOUND_SLACK:
+            break  # nor can any slower level
         w_lim = min(w_turn, 2.0 * max(0.0, wheel_max - v) / axis)
+        # no turn left at this speed: the level's arcs are one straight line (w = ±0),
+        # the first of them wins their tie
+        n_turns = 1 if w_lim == 0.0 else n_w
         if w_lim != headings_of:  # slow levels share the w_turn limit, and so the trig
-            for j in range(n_w):
+            for j in range(n_turns):
                 w = -w_lim + 2.0 * w_lim * j / max(n_w - 1, 1)
                 th_end[j] = arc_headings(th, w, dt, cos_th[j], sin_th[j])
             headings_of = w_lim
-        for j in range(n_w):
+        for j in range(n_turns):
             w = -w_lim + 2.0 * w_lim * j / max(n_w - 1, 1)
             arc_rollout(x, y, v, dt, cos_th[j], sin_th[j], xs, ys)
+            xe, ye = xs[-1], ys[-1]
+            d_end = math.hypot(gx - xe, gy - ye)
+            heading, far = 1.0, d_end > tol
+            if far:
+                heading = math.cos(wrap_angle(math.atan2(gy - ye, gx - xe) - th_end[j]))
+            lead = weights[0] * (d0 - d_end) / reach + weights[1] * heading
+            if lead + weights[2] + weights[3] < best - _BOUND_SLACK:
+                continue
             free, clear = sweep(xs, ys, radius, tracks, active, movers, near_walls, thr, cap)
             if not free:
                 continue
-            xe, ye = xs[-1], ys[-1]
-            d_end = math.hypot(gx - xe, gy - ye)
-            heading, open_path = 1.0, cap
-            if d_end > tol:
-                heading = math.cos(wrap_angle(math.atan2(gy - ye, gx - xe) - th_end[j]))
+            partial = lead + weights[2] * clear / cap
+            open_path = cap
+            if far:
+                if partial + weights[3] < best - _BOUND_SLACK:
+                    continue
                 open_path = sight_clearance(xe, ye, gx, gy, sight, horizon, radius, peds,
                                             walls, discs) - buffer
-            score = (weights[0] * (d0 - d_end) / reach + weights[1] * heading
-                     + weights[2] * clear / cap
-                     + weights[3] * max(-cap, min(open_path, cap)) / cap)
-            if score > best:
-                best, best_v, best_w = score, v, w
+            score = partial + weights[3] * max(-cap, min(open_path, cap)) / cap
+            a = i * n_w + j
+            if score > best or (score == best and a < best_a):
+                best, best_v, best_w, best_a = score, v, w, a
     if best == -np.inf:
         return 0.0, 0.0, 2
     return best_v, best_w, 1
