@@ -281,6 +281,17 @@ def sweep(xs, ys, radius, tracks, active, movers, walls, thr, cap):
     threshold; clearance [m] is the smallest one, capped at ``cap``. Squared
     distances first: a square root only for entities nearer than the cap.
     """
+    return sweep_to_win(xs, ys, radius, tracks, active, movers, walls, thr, cap, 0.0, 0.0,
+                        -np.inf)
+
+
+@njit(cache=True, inline="always")
+def sweep_to_win(xs, ys, radius, tracks, active, movers, walls, thr, cap, lead, w_clear,
+                 limit):
+    """:func:`sweep` for a sampled arc that needs a score of at least ``limit`` to win:
+    its score is at most ``lead + w_clear * clearance / cap`` (``lead``: its progress,
+    heading and sight terms at most), so the sweep gives up, as if the arc were
+    blocked, once the clearance found so far puts that below ``limit``."""
     n = movers.shape[0]
     best = cap
     for k in range(1, xs.shape[0]):
@@ -297,6 +308,8 @@ def sweep(xs, ys, radius, tracks, active, movers, walls, thr, cap):
             near = best + reach
             if d2 < near * near:
                 best = math.sqrt(d2) - reach
+                if lead + w_clear * best / cap < limit:
+                    return False, 0.0
         for j in range(walls.shape[0]):
             if not active[k, n + j]:
                 continue
@@ -308,6 +321,8 @@ def sweep(xs, ys, radius, tracks, active, movers, walls, thr, cap):
             near = best + radius
             if d2 < near * near:
                 best = math.sqrt(d2) - radius
+                if lead + w_clear * best / cap < limit:
+                    return False, 0.0
     return True, best
 
 
@@ -355,8 +370,8 @@ def reactive_command(x, y, th, gx, gy, cfg, peds, walls, discs):
     """
     speed, tol, v_top, wheel_max, axis, w_max, rot_tau = cfg[0], cfg[1], cfg[2], cfg[3], \
         cfg[4], cfg[5], cfg[6]
-    radius, buffer, dt, cap, sight, weights = cfg[7], cfg[8], cfg[9], cfg[13], cfg[14], cfg[15:]
-    n_steps, n_v, n_w = int(cfg[10]), int(cfg[11]), int(cfg[12])
+    radius, buffer, dt, cap = cfg[7], cfg[8], cfg[9], cfg[13]
+    n_steps = int(cfg[10])
     horizon = n_steps * dt
     movers, near_walls = _nearby(x, y, radius, v_top * horizon + cap, horizon, peds, walls,
                                  discs)
@@ -384,11 +399,12 @@ def _best_arc(x, y, th, gx, gy, cfg, peds, walls, discs, tracks, active, movers,
     ``v_top`` (the arc is that long). Branch and bound: speed levels are searched
     from the fastest down, so a level whose bound cannot beat the best score found is
     skipped with every slower one, and within a level an arc whose bound with its
-    actual progress and heading cannot beat it skips the sweep and the sight line.
-    Ties go to the earlier arc in grid order. The weights are not negative and
-    rounding is monotonic, so a score exceeds its bound by a few ulps at most;
-    bounds are compared with a slack of :data:`_BOUND_SLACK`: the winner is the
-    grid's, bit for bit.
+    actual progress and heading cannot beat it skips the sweep and the sight line;
+    an arc leaves the sweep once its clearance so far cannot win
+    (:func:`sweep_to_win`). Ties go to the earlier arc in grid order. The weights are
+    not negative and rounding is monotonic, so a score exceeds its bound by a few
+    ulps at most; bounds are compared with a slack of :data:`_BOUND_SLACK`: the
+    winner is the grid's, bit for bit.
     """
     tol, v_top, wheel_max, axis, w_max = cfg[1], cfg[2], cfg[3], cfg[4], cfg[5]
     radius, buffer, dt, cap, sight, weights = cfg[7], cfg[8], cfg[9], cfg[13], cfg[14], cfg[15:]
@@ -427,8 +443,9 @@ def _best_arc(x, y, th, gx, gy, cfg, peds, walls, discs, tracks, active, movers,
             lead = weights[0] * (d0 - d_end) / reach + weights[1] * heading
             if lead + weights[2] + weights[3] < best - _BOUND_SLACK:
                 continue
-            free, clear = sweep(xs, ys, radius, tracks, active, movers, near_walls, thr, cap)
-            if not free:
+            free, clear = sweep_to_win(xs, ys, radius, tracks, active, movers, near_walls, thr,
+                                       cap, lead + weights[3], weights[2], best - _BOUND_SLACK)
+            if not free:  # blocked, or its clearance cannot win
                 continue
             partial = lead + weights[2] * clear / cap
             open_path = cap
