@@ -38,6 +38,8 @@ CATEGORY_RULES: tuple[tuple[str, str, frozenset[str]], ...] = (
     ("loop bookkeeping", "sim/loop.py", frozenset({"_stretch"})),
     # the per-step numba kernel: pose copy, exits, goal entry and the response layer
     ("response layer kernel", "sim/pedestrians.py", frozenset({"_respond", "advance"})),
+    # … and, with a loop driver, the same kernel followed by the driver's sensing
+    ("response layer kernel", "sim/loop.py", frozenset({"advance_driven"})),
     ("response layer writes", "sim/pedestrians.py", frozenset({"step", "write"})),
     ("robot controller (Python)", "", frozenset({"compute_cmd_internal"})),
     ("robot controller (Python)", "sim/loop.py", frozenset({"_drive"})),
