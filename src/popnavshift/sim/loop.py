@@ -82,7 +82,9 @@ class StepLoop:
         """Step until the limit, or until the robot is done (or absent) and all peds left.
 
         Per step: navground update, robot contacts, then one :func:`advance` kernel
-        call (poses, exits, goal entry, response layer) and its navground writes.
+        call (poses, exits, goal entry, response layer; with a loop driver
+        :func:`advance_driven`, which also senses for it) and its navground writes,
+        then the driver's decision.
         """
         sw, n, pos, tr, layer = self.sw, self.n, self.pos, self.trace, self.layer
         active = self.active
@@ -230,7 +232,6 @@ class StepLoop:
             tr.outcome = "pedestrian_collision" if any(new) else "world_collision"
             tr.outcome_step = step
         return set(now)
-
 
 
 @njit(cache=True)
