@@ -76,6 +76,20 @@ def test_paper_plans_the_main_grid_exactly():
         + (1536 - 384) + (1440 - 240) + (384 - 192) + 2496 + sets * 2496)
 
 
+def test_benchmark_replicated_study_is_the_paper_study_without_its_nulls():
+    """benchmarks/replicated_noswap.yaml (throughput against code that predates the
+    nulls, issue #15) plans every part of the paper study but the two nulls, run for run."""
+    from popnavshift.episodes.specs import all_episodes
+
+    path = Path(__file__).resolve().parent.parent / "benchmarks" / "replicated_noswap.yaml"
+    bench, paper = load_study(str(path)), load_study("paper")
+    nulls = {"swap_null", "sized_null"}
+    assert set(bench.parts) == set(paper.parts) - nulls
+    assert all(bench.parts[p] == paper.parts[p] for p in bench.parts)
+    mine, theirs = plan_study(bench, all_episodes(0)), plan_study(paper, all_episodes(0))
+    assert {r.key for r in mine} == {r.key for r in theirs if r.part not in nulls}
+
+
 def test_batches_group_runs_by_episode_and_have_stable_ids():
     from popnavshift.episodes.specs import all_episodes
 
