@@ -44,6 +44,7 @@ import pandas as pd
 
 from popnavshift.engine.runner import population_settings, run_stages, run_study
 from popnavshift.engine.study import load_study, study_from_dict
+from popnavshift.tables import RUN_KEY
 
 TABLES = ("runs", "pedestrians")
 
@@ -108,9 +109,6 @@ def time_study(study, workers: int, populations_from: Path, executor: str,
 def same_tables(a: Path, b: Path) -> bool:
     return all(pd.read_parquet(a / f"{t}.parquet").equals(pd.read_parquet(b / f"{t}.parquet"))
                for t in TABLES)
-
-
-RUN_KEY = ("episode", "population", "mapping", "controller", "backend")
 
 
 def checkout(rev: str) -> Path:

@@ -104,12 +104,13 @@ def test_an_interrupted_compaction_leaves_the_old_tables_and_no_record(
 
 
 class _Batch:
-    """A stand-in batch for ``RunStore.compact_files``: its episode and shard files."""
+    """A stand-in batch for ``RunStore.compact_files``: its episode, its number of runs
+    and its id (the store finds the batch's shard files from the id)."""
 
     def __init__(self, shard: tuple) -> None:
-        self.episode, self.runs_path, self.peds_path, n = shard
+        self.episode, runs_path, _, n = shard
         self.runs = [None] * n
-        self.id = self.runs_path.stem
+        self.id = runs_path.stem
 
 
 def test_categorical_read_equals_astype_category(tmp_path):

@@ -164,6 +164,23 @@ def test_a_study_file_names_controllers_with_parameters():
         study_from_dict({"name": "s", "parts": {"main": {"controllers": [{"nam": "HL"}]}}})
 
 
+def test_a_misspelt_parameter_of_an_unhashable_factory_is_a_config_error():
+    """The parameter check reads each factory's signature once (a cache); a factory
+    the cache cannot hold is still checked, not called with the bad parameter."""
+    from popnavshift.registry import call_checked
+
+    class Factory:  # a callable instance that defines __eq__: unhashable
+        def __eq__(self, other):
+            return self is other
+
+        def __call__(self, speed=1.0):
+            return speed
+
+    with pytest.raises(ConfigError, match="takes no parameter 'sped'.*did you mean 'speed'"):
+        call_checked("controller", "mine", Factory(), {"sped": 2.0})
+    assert call_checked("controller", "mine", Factory(), {"speed": 2.0}) == 2.0
+
+
 def test_backends_and_respondents_by_class_spec():
     assert BACKENDS.make("popnavshift.sim.backends:HLBackend").name == "hl"
     spec, members = slots()

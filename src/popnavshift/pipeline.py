@@ -66,9 +66,9 @@ class PopulationSettings:
     null_mappings: tuple[str, ...] = ()
 
     @property
-    def respondent2_label(self) -> str:
-        """Profile-set label of the second respondent, e.g. ``A~rule-2``."""
-        return f"A~{self.respondent2}-2"
+    def respondent2_label(self) -> str | None:
+        """Profile-set label of the second respondent, e.g. ``A~rule-2`` (None without one)."""
+        return label("second_respondent", self.respondent2) if self.respondent2 else None
 
 
 def read_table(path: Path, stage: str) -> pd.DataFrame:

@@ -206,8 +206,16 @@ def call_checked(kind: str, name: str, factory: Callable[..., T], kwargs: dict) 
     return factory(**kwargs)
 
 
-@functools.lru_cache(maxsize=256)
 def _signature(factory: Callable) -> inspect.Signature:
     """``inspect.signature``, once per factory: a study makes a controller and a backend
-    for every run, and reading a class's signature costs ~0.2 ms."""
+    for every run, and reading a class's signature costs ~0.2 ms. A factory that cannot
+    be hashed (a callable instance, say) is read every time."""
+    try:
+        return _cached_signature(factory)
+    except TypeError:  # unhashable, or no signature (then this raises it again)
+        return inspect.signature(factory)
+
+
+@functools.lru_cache(maxsize=256)
+def _cached_signature(factory: Callable) -> inspect.Signature:
     return inspect.signature(factory)

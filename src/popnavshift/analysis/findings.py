@@ -8,15 +8,15 @@ The paper's own figures are in :mod:`popnavshift.analysis.paper_reference`.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
 
+from ..tables import BUILTIN_CONTROLLERS
 from .paper_reference import MATCHED_CHANGE_SIGN, TAIL_TO_MEAN_RATIO
 from .reversals import MATCHED, METRICS
-from .summary import BUILTIN_CONTROLLERS
 
 
 class Finding(NamedTuple):
@@ -48,6 +48,9 @@ def completed_lower(all_cells: pd.Series, completed: pd.Series, label: str) -> F
     numbers = {m: (float(all_cells[m]), float(completed[m])) for m in METRICS}
     return Finding(f"Completed-cell reversal rates are lower than all-cell rates ({label})",
                    bool(holds), numbers)
+
+
+WIDTH_SCENES: tuple[str, ...] = ("sidewalk", "bottleneck")  # the two panels of the paper's Fig. 4
 
 
 def width_decreases(by_width: pd.DataFrame, label: str) -> Finding:
@@ -108,23 +111,46 @@ def paper_findings(table1: pd.DataFrame, outcomes: pd.DataFrame, widths: dict[st
         "sidewalk", "bottleneck").
       change: :func:`delay_change` of mean delay.
     """
-    out = [
-        burden_exceeds_time(_rates(table1, "matched", "all"), "matched, all cells"),
-        burden_exceeds_time(_rates(table1, "all_pairs", "all"), "all pairs, all cells"),
-        burden_exceeds_time(_rates(table1, "all_pairs", "completed"), "all pairs, completed"),
-        completed_lower(_rates(table1, "all_pairs", "all"),
-                        _rates(table1, "all_pairs", "completed"), "all pairs"),
+    return available_findings(table1, outcomes, widths, change)[0]
+
+
+def available_findings(table1: pd.DataFrame, outcomes: pd.DataFrame,
+                       widths: dict[str, pd.DataFrame], change: pd.DataFrame, *,
+                       pairs: bool = True, matched: bool = True,
+                       delays: bool = True) -> tuple[list[Finding], list[str]]:
+    """:func:`paper_findings` on a study that may lack some inputs: the findings whose
+    inputs exist, in the paper's order, and what was left out. ``pairs``: Table I has the
+    all-pairs rows; ``matched``: its matched rows; ``delays``: every controller has a
+    mean delay; the controller findings need all three built-in controllers, the width
+    findings a width series."""
+    ctrl = set(BUILTIN_CONTROLLERS) <= set(outcomes.index)
+    controllers = "the controller findings (all three built-in controllers)"
+    controller_delays = "the controller delay findings"
+
+    def extreme(column: str, controller: str, highest: bool, among=None) -> list[Finding]:
+        return [controller_extreme(outcomes, column, controller, highest=highest, among=among)]
+
+    checks: list[tuple[bool, str, Callable[[], list[Finding]]]] = [
+        (matched, "the matched-pair reversal finding",
+         lambda: [burden_exceeds_time(_rates(table1, "matched", "all"), "matched, all cells")]),
+        (pairs, "the all-pairs reversal findings", lambda: [
+            burden_exceeds_time(_rates(table1, "all_pairs", "all"), "all pairs, all cells"),
+            burden_exceeds_time(_rates(table1, "all_pairs", "completed"),
+                                "all pairs, completed"),
+            completed_lower(_rates(table1, "all_pairs", "all"),
+                            _rates(table1, "all_pairs", "completed"), "all pairs")]),
+        (bool(widths), "the width findings (sidewalks or bottlenecks at 2+ widths)",
+         lambda: [width_decreases(w, label) for label, w in widths.items()]),
+        (delays, "the tail-to-mean finding", lambda: [tail_ratio(outcomes, TAIL_TO_MEAN_RATIO)]),
+        (ctrl, controllers, lambda: extreme("success_pct", "reactive", True)),
+        (ctrl and delays, controller_delays, lambda: extreme("mean_delay", "robot_orca", False)
+         + extreme("worst_decile", "robot_orca", False)),
+        (ctrl, controllers, lambda: extreme("timeout_pct", "early_yield", True)),
+        (ctrl and delays, controller_delays,
+         lambda: extreme("mean_delay", "early_yield", False, ("reactive", "early_yield"))),
+        (ctrl and matched, "the matched-shift direction finding",
+         lambda: [matched_change_direction(change, MATCHED_CHANGE_SIGN)]),
     ]
-    out += [width_decreases(w, label) for label, w in widths.items()]
-    out.append(tail_ratio(outcomes, TAIL_TO_MEAN_RATIO))
-    if set(BUILTIN_CONTROLLERS) <= set(outcomes.index):
-        out += [
-            controller_extreme(outcomes, "success_pct", "reactive", highest=True),
-            controller_extreme(outcomes, "mean_delay", "robot_orca", highest=False),
-            controller_extreme(outcomes, "worst_decile", "robot_orca", highest=False),
-            controller_extreme(outcomes, "timeout_pct", "early_yield", highest=True),
-            controller_extreme(outcomes, "mean_delay", "early_yield", highest=False,
-                               among=("reactive", "early_yield")),
-            matched_change_direction(change, MATCHED_CHANGE_SIGN),
-        ]
-    return out
+    found = [f for ok, _, make in checks if ok for f in make()]
+    left = list(dict.fromkeys(what for ok, what, _ in checks if not ok))
+    return found, left

@@ -12,7 +12,6 @@ the reason in ``Analysis.missing``.
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -22,20 +21,10 @@ from ..engine.folder import is_half, split_halves
 from ..populations.build import HALF_SUFFIXES
 from ..tables import NO_ROBOT
 from .delay import cell_metrics, paired_delays
-from .findings import (
-    Finding,
-    burden_exceeds_time,
-    completed_lower,
-    controller_extreme,
-    matched_change_direction,
-    paper_findings,
-    tail_ratio,
-    width_decreases,
-)
-from .paper_reference import MATCHED_CHANGE_SIGN, REVERSAL_RATE, TAIL_TO_MEAN_RATIO
+from .findings import WIDTH_SCENES, Finding, available_findings
+from .paper_reference import REVERSAL_RATE
 from .reversals import MATCHED, comparisons, population_pairs, ranking_tau
 from .summary import (
-    BUILTIN_CONTROLLERS,
     controller_outcomes,
     delay_change,
     no_robot_checks,
@@ -45,8 +34,6 @@ from .summary import (
     reversal_table,
     sensitivity_by_width,
 )
-
-WIDTH_SCENES: tuple[str, ...] = ("sidewalk", "bottleneck")  # the two panels of the paper's Fig. 4
 
 
 @dataclass
@@ -213,54 +200,18 @@ def _widths(tables: dict[str, pd.DataFrame]) -> dict[str, pd.DataFrame]:
 
 
 def check_findings(tables: dict[str, pd.DataFrame]) -> tuple[list[Finding], str]:
-    """The paper's findings (:func:`paper_findings`) on our tables, and what could not be checked.
-
-    With every input present this is exactly ``paper_findings``; otherwise the
-    findings whose inputs exist are checked with the same functions, and the
-    returned text names the ones left out.
-    """
+    """The paper's findings (:func:`.findings.available_findings`) on our tables, and
+    what could not be checked (with every input present, exactly ``paper_findings``)."""
     if "controller_outcomes" not in tables:
         return [], "no controller outcomes"
     outcomes = tables["controller_outcomes"].set_index("controller")
     t1 = tables.get("reversals", pd.DataFrame(columns=["comparison", "cells", "metric", "rate"]))
     change = tables.get("delay_change", pd.DataFrame(columns=["metric", "controller", "population",
                                                              "change"]))
-    mean_change, widths = change[change["metric"] == "mean_delay"], _widths(tables)
     delays = bool(outcomes["mean_delay"].notna().all())
     pairs = "reversals" in tables and delays
     matched = pairs and bool((t1["comparison"] == "matched").any())
-    ctrl = set(BUILTIN_CONTROLLERS) <= set(outcomes.index)
-    if matched and widths and ctrl:
-        return paper_findings(t1, outcomes, widths, mean_change), ""
-
-    def rates(comp: str, cells: str) -> pd.Series:
-        sel = t1[(t1["comparison"] == comp) & (t1["cells"] == cells)]
-        return sel.set_index("metric")["rate"]
-
-    def extreme(column: str, controller: str, highest: bool, among=None) -> Finding:
-        return controller_extreme(outcomes, column, controller, highest=highest, among=among)
-
-    checks: list[tuple[bool, str, Callable[[], list[Finding]]]] = [
-        (matched, "the matched-pair reversal finding",
-         lambda: [burden_exceeds_time(rates("matched", "all"), "matched, all cells")]),
-        (pairs, "the all-pairs reversal findings", lambda: [
-            burden_exceeds_time(rates("all_pairs", "all"), "all pairs, all cells"),
-            burden_exceeds_time(rates("all_pairs", "completed"), "all pairs, completed"),
-            completed_lower(rates("all_pairs", "all"), rates("all_pairs", "completed"),
-                            "all pairs")]),
-        (bool(widths), "the width findings (sidewalks or bottlenecks at 2+ widths)",
-         lambda: [width_decreases(w, label) for label, w in widths.items()]),
-        (delays, "the tail-to-mean finding",
-         lambda: [tail_ratio(outcomes, TAIL_TO_MEAN_RATIO)]),
-        (ctrl, "the controller findings (all three built-in controllers)", lambda: [
-            extreme("success_pct", "reactive", True), extreme("timeout_pct", "early_yield", True)]),
-        (ctrl and delays, "the controller delay findings", lambda: [
-            extreme("mean_delay", "robot_orca", False),
-            extreme("worst_decile", "robot_orca", False),
-            extreme("mean_delay", "early_yield", False, ("reactive", "early_yield"))]),
-        (ctrl and matched, "the matched-shift direction finding",
-         lambda: [matched_change_direction(mean_change, MATCHED_CHANGE_SIGN)]),
-    ]
-    found = [f for ok, _, make in checks if ok for f in make()]
-    left = [what for ok, what, _ in checks if not ok]
+    found, left = available_findings(t1, outcomes, _widths(tables),
+                                     change[change["metric"] == "mean_delay"],
+                                     pairs=pairs, matched=matched, delays=delays)
     return found, ("not checked on this study: " + "; ".join(left)) if left else ""

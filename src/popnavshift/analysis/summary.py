@@ -17,8 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-from ..sim.controllers.builtin import BUILTIN_CONTROLLERS
-from ..tables import NO_ROBOT
+from ..tables import BUILTIN_CONTROLLERS, NO_ROBOT
 from .bootstrap import LEVEL, N_BOOT, rate_intervals
 from .delay import UNIT, cell_metrics, paired_delays
 from .reversals import (

@@ -21,17 +21,15 @@ from functools import partial
 import numpy as np
 import pandas as pd
 
-from ..sim.controllers.builtin import BUILTIN_CONTROLLERS
-from ..tables import NO_ROBOT
+from ..tables import BUILTIN_CONTROLLERS, NO_ROBOT
 from .delay import CELL_KEY, cell_metrics, episode_cells, paired_delays
-from .findings import TAIL_BAND
+from .findings import TAIL_BAND, WIDTH_SCENES
 from .nulls import centred_interval
 from .paper_reference import MATCHED_CHANGE_SIGN
 from .resample import build_design, episode_weights, resampled_metrics
 from .reversals import MATCHED
 from .significance import LEVEL
 
-WIDTH_SCENES = ("sidewalk", "bottleneck")
 METRICS_NEEDED = ("mean_delay", "worst_decile", "success_share", "timeout_share")
 
 

@@ -26,7 +26,7 @@ import pyarrow.parquet as pq
 
 from ..io import atomic_path
 from ..populations.perturb import with_profile_set_columns
-from ..tables import RUN_KEY, check_table
+from ..tables import PEDESTRIANS, RUN_KEY, RUNS, check_table
 
 #: Runs per chunk: large enough for few row groups, small enough that a chunk's
 #: pedestrian rows (about 8 per run) stay in the tens of megabytes.
@@ -36,8 +36,7 @@ CARRIED_BATCH_ROWS = 65_536
 
 #: (runs shard, pedestrians shard, runs in it) of one batch, with its episode
 Shard = tuple[str, Path, Path, int]
-TABLES = (("runs", "runs.parquet", [*RUN_KEY]),
-          ("pedestrians", "pedestrians.parquet", [*RUN_KEY, "slot"]))
+TABLES = tuple((spec.stage, spec.file, list(spec.key)) for spec in (RUNS, PEDESTRIANS))
 
 
 def episode_chunks(shards: list[Shard], chunk_runs: int = CHUNK_RUNS) -> list[list[Shard]]:

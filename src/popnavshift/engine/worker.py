@@ -140,7 +140,9 @@ def run_batch(
     ctx = context or _CONTEXT
     assert ctx is not None, "worker used before init_worker"
     memo = RunMemo()
-    profile_set = ProfileSet.parse(batch.mapping).columns()  # one profile set per batch
+    # one episode and one profile set per batch
+    profile_set = ProfileSet.parse(batch.mapping).columns()
+    seed_set = seed_set_of(batch.episode, ctx.episode_seed)
     spec = get_episode(batch.episode, seed=ctx.episode_seed)
     slots: dict[str, SlotProfiles] = {}  # per population: the same for every controller
     run_rows, ped_columns = [], []
@@ -158,7 +160,7 @@ def run_batch(
             "backend": run.backend,
             "mapping": run.mapping,
             "run_id": run.id,
-            "seed_set": seed_set_of(run.episode, ctx.episode_seed),
+            "seed_set": seed_set,
             **profile_set,
         }
         run_rows.append({**result.run, **keys, "error": error})

@@ -36,7 +36,8 @@ def _metrics(pos, n, steps, arrival_step, arrival_frac, has_robot, robot_last, o
              v_stop_step, walked, stop_steps, detour, min_clear):
     """Per-pedestrian metrics and the robot's minimum clearance, in one pass over the
     trace (arithmetic and summation order as numpy's row-by-row reductions, so the
-    values are those of the per-metric formulas in the docstrings above).
+    values are those of the per-metric formulas in the docstrings of
+    :func:`pedestrian_metrics` and :func:`robot_metrics`).
 
     Fills ``walked`` [m], ``stop_steps`` (steps slower than V_STOP before the exit),
     ``detour`` [m] (NaN if not arrived) and ``min_clear`` [m] (NaN without robot);

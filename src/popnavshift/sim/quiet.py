@@ -22,8 +22,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..episodes.specs import PED_RADIUS
-from .constants import DT, ROBOT_SENSING_RANGE
+from .constants import DT, PED_RADIUS, ROBOT_SENSING_RANGE
 from .controllers._rollout import sense_positions
 from .pedestrians import SENSE_RANGE, advance
 

@@ -23,6 +23,7 @@ from collections.abc import Callable
 from functools import partial
 from typing import Any
 
+from ...tables import BUILTIN_CONTROLLERS as BUILTIN_CONTROLLERS
 from . import early_yield, reactive
 from .navground_type import NavgroundType, navground_types
 from .registry import CONTROLLERS
@@ -33,9 +34,9 @@ BUILTINS: dict[str, Callable[..., Any]] = {
     "early_yield": early_yield.EarlyYield,
     "robot_orca": RobotORCA,
 }
-#: the paper's controllers, in its order: the default of a study part and the
-#: baselines of ``popnavshift evaluate``
-BUILTIN_CONTROLLERS: tuple[str, ...] = tuple(BUILTINS)
+# the paper's controllers, in its order: the default of a study part and the
+# baselines of ``popnavshift evaluate`` (their names are declared in tables.py)
+assert tuple(BUILTINS) == BUILTIN_CONTROLLERS
 OWN_BEHAVIORS = frozenset({reactive.NAVGROUND_NAME, early_yield.NAVGROUND_NAME})
 
 
