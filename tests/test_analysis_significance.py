@@ -8,12 +8,19 @@ import pytest
 from scipy import stats
 
 from popnavshift.analysis import cell_key, cell_metrics, paired_delays
+from popnavshift.analysis.calibrate import calibration_table
 from popnavshift.analysis.delay import cvar, worst_decile
 from popnavshift.analysis.evidence import test_comparisons as run_tests
-from popnavshift.analysis.nulls import headline_designs, permutation_p
-from popnavshift.analysis.replicates import seed_sets_needed
+from popnavshift.analysis.nulls import headline_designs
 from popnavshift.analysis.resample import build_design, episode_weights, resampled_metrics
-from popnavshift.analysis.significance import bh, gail_simon, holm, orderings
+from popnavshift.analysis.significance import (
+    bh,
+    crossover_p,
+    detectable_crossover,
+    holm,
+    orderings,
+)
+from popnavshift.analysis.verdicts import ABOVE, BELOW, clopper_pearson
 from popnavshift.populations.nulls import swap_name
 from synth_study import crossover, no_effect, synthetic_cells, synthetic_study
 
@@ -93,7 +100,10 @@ def test_an_injected_crossover_is_found_and_beats_the_swap_null():
     assert row["n_null"] == 19
     assert row["observed"] > 0.2  # the injected cells reverse significantly
     assert row["p_value"] == pytest.approx(1 / 20)  # beats every one of the 19 permutations
-    assert row["ci_low"] > 0  # excess over the null, interval above 0
+    assert row["test"] == "permutation" and row["verdict"] == ABOVE
+    raw = head(t, "mean_delay", rule="raw")
+    assert raw["verdict"] == ABOVE and raw["ci_low"] > 0  # the prediction interval above 0
+    assert head(t, "robot_time", rule="raw")["verdict"] == ABOVE  # a shifts robot time too
     cross = t.crossovers[(t.crossovers["metric"] == "mean_delay")
                          & (t.crossovers["comparison"] == "matched")]
     found = cross[cross["crossover"]]
@@ -104,22 +114,35 @@ def test_an_injected_crossover_is_found_and_beats_the_swap_null():
     assert set(found["cell"]) <= injected
 
 
-def test_pure_noise_gives_uniform_p_values_and_no_significant_excess():
-    p_values, covered = [], 0
+def test_pure_noise_keeps_every_verdict_rule_at_its_nominal_rate():
+    """30 synthetic matched studies without any population effect, each with 9 swap
+    permutations, through the real analysis: the observed pair's verdicts, and every
+    placebo of every study (each permutation as the observed against the others)."""
+    p_values, claims, crossovers, nulls = [], 0, [], []
     n = 30
     for seed in range(n):
         runs, peds = swap_study(9, inject=0.0, seed=100 + seed, n_cells=6, variants=3, n_peds=5)
-        row = head(analyse_matched(runs, peds, n_boot=60, seed=seed, metrics=("mean_delay",)),
-                   "mean_delay", rule="raw")
+        t = analyse_matched(runs, peds, n_boot=60, seed=seed, metrics=("mean_delay",))
+        row = head(t, "mean_delay", rule="raw")
         p_values.append(row["p_value"])
-        covered += bool(row["ci_low"] <= 0 <= row["ci_high"])
+        claims += row["verdict"] in (ABOVE, BELOW)
+        crossovers += [bool(t.crossovers["crossover"].any()),
+                       *t.placebo_crossovers["any"].astype(bool)]
+        nulls.append(t.null_rates.assign(metric=f"mean_delay-{seed}"))
     p = np.array(p_values)
     # the permutation p of 9 exchangeable nulls is uniform on {0.1, 0.2, …, 1} (ties
     # make it conservative): mean ≈ 0.55, P(p ≤ 0.1) ≤ 0.1
     assert 0.4 < p.mean() < 0.75
     assert (p <= 0.1).mean() <= 0.2
     assert stats.kstest(p, "uniform").pvalue > 0.01
-    assert covered >= 0.8 * n
+    # the prediction t claims an effect for at most 5 % of pure-noise pairs (CP lower end)
+    assert clopper_pearson(claims, n)[0] <= 0.05
+    # no crossover table of pure noise shows a crossover more often than 5 %
+    assert clopper_pearson(sum(crossovers), len(crossovers))[0] <= 0.05
+    # the calibration of 270 placebos: every false-positive rule within its nominal level
+    cal = calibration_table(pd.concat(nulls, ignore_index=True))
+    fp = cal[(cal["comparison"] == "all") & (cal["kind"] == "false positive")]
+    assert len(fp) >= 4 and fp["within"].all()
 
 
 def test_orderings_are_significant_only_for_real_differences():
@@ -139,16 +162,35 @@ def test_orderings_are_significant_only_for_real_differences():
 # --- the crossover test and multiplicity control -------------------------------------------
 
 
-def test_gail_simon_known_values():
-    # two subgroups of opposite sign, z = ±2: Q = 4, p = ½ P(χ²₁ > 4)
-    p = gail_simon(np.array([[2.0, -2.0], [2.0, 2.0], [1.0, np.nan]]),
-                   np.array([[1.0, 1.0], [1.0, 1.0], [1.0, 1.0]]))
-    assert p[0] == pytest.approx(0.5 * stats.chi2.sf(4.0, 1))
-    assert p[1] == pytest.approx(0.5)  # no crossover: Q = 0, the point mass 1 − 2^−(k−1)
-    assert np.isnan(p[2])  # one subgroup cannot cross
-    # Gail & Simon (1985), Table 1: c = 2.71 is the 5 % critical value for k = 2
-    assert gail_simon(np.array([[1.0, -1.0]]), np.full((1, 2), 1 / np.sqrt(2.71)))[0] \
-        == pytest.approx(0.05, abs=5e-4)
+def test_crossover_p_by_hand():
+    # two populations, t = ±3 on 9 df (n = 10, SE scaled by √(10/9)): p = 2 · P(t₉ > 3)
+    se = 1 / np.sqrt(10 / 9)
+    p = crossover_p(np.array([[3.0, -3.0], [3.0, 3.0], [3.0, np.nan]]),
+                    np.full((3, 2), se), np.full(3, 10.0))
+    assert p[0] == pytest.approx(2 * stats.t.sf(3.0, 9))
+    assert p[1] == pytest.approx(1.0)  # both positive: no evidence of a negative side
+    assert np.isnan(p[2])  # one population cannot cross
+    # three populations: Bonferroni over them on each side, the weaker side decides
+    p3 = crossover_p(np.array([[4.0, -2.0, 1.0]]), np.full((1, 3), se), np.array([10.0]))
+    assert p3[0] == pytest.approx(3 * stats.t.cdf(-2.0, 9))
+
+
+def test_detectable_crossover_grows_with_the_table_and_shrinks_with_episodes():
+    y = detectable_crossover(np.array([0.2, 0.2, 0.2]), np.array([3.0, 12.0, 12.0]),
+                             np.array([2, 2, 2]), m=100)
+    assert y[0] > 10 * y[1]  # 3 episodes (2 df) can see almost nothing
+    assert detectable_crossover(np.array([0.2]), np.array([12.0]), np.array([2]), m=1000)[0] \
+        > y[1]
+    # at the detectable size a crossover is found with 80 % power (Monte Carlo: normal
+    # differences, their SE estimated on n − 1 degrees of freedom)
+    rng = np.random.default_rng(0)
+    n, se, m, k = 12, 0.2, 100, 4000
+    sigma = se * np.sqrt(n / (n - 1))  # the true SD of a difference
+    d = np.column_stack([y[1] + sigma * rng.standard_normal(k),
+                         -y[1] + sigma * rng.standard_normal(k)])
+    se_hat = se * np.sqrt(rng.chisquare(n - 1, (k, 2)) / (n - 1))
+    p = crossover_p(d, se_hat, np.full(k, float(n)))
+    assert 0.76 < (p <= 0.05 / m).mean() < 0.84
 
 
 def test_holm_and_bh_by_hand():
@@ -156,11 +198,6 @@ def test_holm_and_bh_by_hand():
     np.testing.assert_allclose(holm(p)[:4], [0.04, 0.09, 0.09, 0.2])
     np.testing.assert_allclose(bh(p)[:4], [0.04, 0.16 / 3, 0.16 / 3, 0.2])
     assert np.isnan(holm(p)[4]) and np.isnan(bh(p)[4])
-
-
-def test_permutation_p_counts_ties_against_the_observed():
-    assert permutation_p(0.3, np.array([0.1, 0.3, 0.5, 0.2])) == pytest.approx(3 / 5)
-    assert permutation_p(0.9, np.zeros(19)) == pytest.approx(1 / 20)
 
 
 # --- tail statistic and power --------------------------------------------------------------
@@ -173,24 +210,6 @@ def test_cvar_by_hand_and_equal_to_the_worst_decile_at_multiples_of_ten():
     assert cvar(y) == pytest.approx((15 + 0.5 * 14) / 1.5)
     assert worst_decile(y) == pytest.approx(14.5)  # ⌈1.5⌉ = 2 records
     assert cvar(np.array([3.0])) == 3.0 and np.isnan(cvar(np.array([])))
-
-
-def test_seed_sets_needed_scales_with_the_square_of_the_noise_to_effect_ratio():
-    h = pd.DataFrame({"excess": [0.08, 0.08, -0.01, 0.0], "ci_low": [-0.02, 0.01, -0.05, -0.02],
-                      "ci_high": [0.18, 0.15, 0.07, 0.02], "p_value": [0.2, 0.05, 0.7, 0.5]})
-    out = seed_sets_needed(h, 3)
-    se = (h["ci_high"] - h["ci_low"]) / (2 * stats.norm.ppf(0.975))
-    z = stats.norm.ppf(0.95) + stats.norm.ppf(0.8)
-    assert out["seed_sets_needed"].iloc[0] == np.ceil(3 * (z * se.iloc[0] / 0.08) ** 2)
-    # an excess below the smallest of interest: the seed sets to detect 5 points
-    assert out["effect"].iloc[2] == 0.05
-    assert out["seed_sets_needed"].iloc[2] == np.ceil(3 * (z * se.iloc[2] / 0.05) ** 2)
-    assert list(out["verdict"]) == ["undecided", "beats the null", "undecided",
-                                    "no excess ≥ 0.05"]
-    few = seed_sets_needed(h.assign(n_null=9, p_value=0.1), 3)  # p ≥ 1/10 whatever happens
-    assert few["verdict"].iloc[1].startswith("above the null (too few null replicates")
-    wider = seed_sets_needed(h.assign(ci_high=h["ci_high"] + 0.06, ci_low=h["ci_low"] - 0.06), 3)
-    assert wider["seed_sets_needed"].iloc[0] > out["seed_sets_needed"].iloc[0]
 
 
 def sized_study(n_null: int, *, inject: float, seed: int, **kw):

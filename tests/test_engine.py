@@ -64,7 +64,9 @@ def test_paper_plans_the_main_grid_exactly():
     assert study.parts["swap_null"].seeds == study.parts["matched"].seeds  # same design
     perms = study.parts["swap_null"].null_design.replicates
     sized = study.parts["sized_null"].null_design.replicates
-    assert perms >= 19  # the permutation p-value can reach 0.05
+    # the verdicts rest on the spread between replicates (a prediction t on P − 1 df):
+    # 9 each, the design docs/analysis.md §8 chose by measurement
+    assert perms >= 9 and sized >= 9
     assert counts["matched"]["total"] == sets * pair
     assert counts["swap_null"]["total"] == perms * sets * pair
     assert counts["sized_null"]["total"] == sized * 7 * 1248  # 7 populations besides mixed

@@ -43,6 +43,20 @@ def test_no_effect_and_clear_differences_read_robust():
     assert verdict(runs, "a", ev).label == "robust in this study"
 
 
+def test_no_crossover_without_the_power_to_see_one_is_not_robust():
+    """3 variants per cell: the orderings are decided, but a cell's crossover test has 2
+    degrees of freedom and could see only a crossover of seconds — inconclusive, saying
+    the size; 8 variants see a ±1 s crossover: robust."""
+    runs, peds = synthetic_study({"P": no_effect, "Q": no_effect}, variants=3, noise=0.1)
+    v = verdict(runs, "a", evidence(runs, peds))
+    assert v.label == "inconclusive" and "had little power" in v.text
+    size = float(v.text.split("crossover of ±")[1].split(" s")[0])
+    assert size > 1.0
+    runs, peds = synthetic_study({"P": no_effect, "Q": no_effect}, variants=8, noise=0.1)
+    v = verdict(runs, "a", evidence(runs, peds))
+    assert v.label == "robust in this study" and "with 80% power" in v.text
+
+
 def test_noisy_small_designs_are_inconclusive_with_advice():
     runs, peds = synthetic_study({"P": no_effect, "Q": no_effect}, variants=2, noise=3.0,
                                  n_peds=3)

@@ -1,4 +1,5 @@
-"""The report leads with the answer: excess over the null, CI and p, computed from the tables."""
+"""The report leads with the answer in plain words, then the headline box: verdicts against
+the null, their intervals and p, calibration — computed from the tables."""
 
 from __future__ import annotations
 
@@ -46,22 +47,67 @@ def study(tmp_path_factory) -> Path:
     return folder
 
 
-def test_the_report_opens_with_the_headline_box(study):
+def test_the_report_opens_with_the_answer_in_plain_words(study):
     page = (study / "report" / "index.html").read_text("utf-8")
+    answer = page.index('id="plain-answer"')
     box = page.index('id="headline"')
-    assert box < page.index('id="table1"')  # before every reproduction table
+    assert answer < box < page.index('id="table1"')  # before every reproduction table
+    plain = page[answer:box]
+    assert "Do controller rankings change with the pedestrian population beyond noise?" in plain
+    assert "Pedestrian burden:" in plain and "Robot time:" in plain
+    assert "placebos" in plain  # the deciding test's false-positive rate on this study
     head = page[box: page.index("</div>", box)]
-    assert "swap permutations" in head and "size-matched subsets of mixed" in head
-    assert "excess" in head and "p = " in head and "Paper's rule: raw rate" in head
-    # each raw-rule line carries its own verdict, beside the significant rule's
-    assert head.count("Paper's rule: raw rate") == head.count('→ <span class="verdict') / 2 > 0
+    assert "swap permutations" in head and "size-matched random subsets of mixed" in head
+    assert "prediction t" in head and "Exact permutation" in head and "episode-only" in head
+    # one verdict per (comparison, metric) line, the raw rule's
+    assert head.count('→ <span class="verdict') == 8
     for name in ("evidence_headline", "evidence_null_rates", "evidence_ranks",
-                 "evidence_power", "evidence_curve", "evidence_crossovers"):
+                 "evidence_power", "evidence_curve", "evidence_crossovers",
+                 "evidence_calibration"):
         assert (study / "report" / "tables" / f"{name}.csv").exists(), name
     assert (study / "report" / "figures" / "evidence_nulls.png").exists()
-    # with 3 and 2 null replicates no p can reach 0.05: Table I is labelled descriptive
-    table1 = page[page.index('id="table1"'):]
-    assert "Descriptive: for the matched intervention and the population pairs" in table1
+    assert 'id="calibration"' in page
+
+
+def test_the_plain_answer_follows_the_verdicts():
+    """Change the verdicts and the words change: nothing in the paragraph is fixed text."""
+    from popnavshift.analysis.verdicts import ABOVE, SMALL, UNDECIDED
+    from popnavshift.report.plain import answer_sentences
+
+    def row(comp, metric, verdict, excess):
+        return {"comparison": comp, "metric": metric, "rule": "raw", "verdict": verdict,
+                "excess": excess, "ci_low": excess - 0.03, "ci_high": excess + 0.03,
+                "n_null": 9, "null": "swap" if comp == "matched" else "sized",
+                "seed_sets": 4, "variants_per_cell": 12, "reversals": 5, "comparable": 50,
+                "observed": 0.3}
+
+    head = pd.DataFrame([row("matched", "mean_delay", ABOVE, 0.09),
+                         row("matched", "cvar90", UNDECIDED, 0.02),
+                         row("matched", "robot_time", SMALL, 0.0)])
+    answer, _ = answer_sentences({"evidence_headline": head})
+    text = " ".join(a["lead"] + " " + a["text"] for a in answer)
+    assert "Pedestrian burden: yes." in text and "Robot time: no." in text
+    assert "mean delay orderings reverse more often than under the null (+9.0 pp [+6.0, +12.0])" \
+        in text and "CVaR-90 delay orderings are undecided" in text
+    head.loc[0, "verdict"] = UNDECIDED
+    answer, _ = answer_sentences({"evidence_headline": head})
+    assert answer[0]["lead"] == "Pedestrian burden: not decided."
+    head["verdict"] = SMALL
+    assert answer_sentences({"evidence_headline": head})[0][0]["lead"] == "Pedestrian burden: no."
+
+
+def test_calibrate_prints_every_rules_false_positive_rate(study):
+    out = subprocess.run([sys.executable, "-m", "popnavshift", "calibrate", str(study)],
+                         capture_output=True, text=True, timeout=300,
+                         env={**os.environ, "COLUMNS": "200"})
+    text = " ".join((out.stdout + out.stderr).split())
+    assert out.returncode == 0, text
+    for rule in ("prediction t", "exact permutation", "crossover test", "episode-only"):
+        assert rule in text, rule
+    assert "within its nominal level" in text
+    empty = subprocess.run([sys.executable, "-m", "popnavshift", "calibrate",
+                            str(study / "nowhere")], capture_output=True, text=True, timeout=60)
+    assert empty.returncode == 2 and "Traceback" not in empty.stderr
 
 
 def test_the_headline_is_recomputed_from_the_parquet_tables(study):
@@ -79,7 +125,11 @@ def test_the_headline_is_recomputed_from_the_parquet_tables(study):
         mine = table.loc[(row.metric, row.rule)]
         assert mine["n_null"] == row.n_null
         assert row.rule == "sig" or row.n_null == 3
-        for col in ("observed", "null_mean", "excess", "ci_low", "ci_high", "p_value"):
+        for col in ("observed", "null_mean", "excess", "ci_low", "ci_high", "p_value",
+                    "episode_ci_low", "episode_ci_high", "verdict"):
+            if col == "verdict":
+                assert mine[col] == getattr(row, col)
+                continue
             a, b = float(mine[col]), float(getattr(row, col))
             assert (np.isnan(a) and np.isnan(b)) or a == pytest.approx(b, abs=1e-9), col
 
@@ -93,6 +143,7 @@ def test_plan_prints_the_power_advice_of_a_pilot(study, tmp_path):
     assert out.returncode == 0, out.stderr
     text = " ".join((out.stdout + out.stderr).split())  # the console writes to stderr
     assert "power (from" in text and "matched" in text and "80% power" in text
+    assert "what would decide it" in text
     bare = subprocess.run([sys.executable, "-m", "popnavshift", "plan", str(cfg), "--from",
                            str(tmp_path)], capture_output=True, text=True, timeout=120)
     assert bare.returncode == 0 and "no estimate yet" in bare.stdout + bare.stderr

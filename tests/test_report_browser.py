@@ -159,8 +159,8 @@ def test_page_loads_without_errors_and_shows_figures_and_tables(page, tmp_path):
     assert all(i["data"] and i["ok"] and i["shown"] > 300 for i in dom["images"]), dom["images"]
     assert len(dom["tables"]) >= 10 and min(dom["tables"]) >= 1
     # the answer first, then the populations and the checks before any score
-    assert dom["sections"][:7] == ["answer", "ranks", "surviving", "replicates", "populations",
-                                   "checks", "summary"]
+    assert dom["sections"][:7] == ["answer", "ranks", "replicates", "calibration",
+                                   "populations", "checks", "summary"]
     assert "NOT a language model" in dom["respondent"]
 
 

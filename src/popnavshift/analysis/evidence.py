@@ -4,8 +4,9 @@
 bootstrap once over the given runs (every population, controller and cell) and,
 per metric, lays out every controller ordering (:mod:`.significance`), then for
 each comparison design (observed pairs + null replicates, :func:`.nulls.headline_designs`)
-tests the observed reversal rates against the null (:mod:`.nulls`) and runs the
-Gail–Simon crossover test over the observed populations. ``controller_ranks``
+tests the observed reversal rates against the null (:mod:`.nulls`, verdicts from
+:mod:`.verdicts`) and runs the crossover test over the observed populations and, as
+placebos, over every null replicate's. ``controller_ranks``
 gives each controller's rank per population with rank intervals from the same
 resamples.
 """
@@ -19,9 +20,9 @@ import numpy as np
 import pandas as pd
 
 from .delay import cell_metrics, paired_delays
-from .nulls import CI_LEVEL, null_rates, null_test
+from .nulls import CI_LEVEL, null_test
 from .resample import build_design, episode_weights, resampled_metrics
-from .significance import ALPHA, LEVEL, crossover_tests, orderings
+from .significance import ALPHA, LEVEL, Orderings, crossover_tests, orderings
 
 #: The metrics the significance analysis ranks: the paper's three and CVaR-90.
 EVIDENCE_METRICS: tuple[str, ...] = ("robot_time", "mean_delay", "worst_decile", "cvar90")
@@ -32,9 +33,11 @@ N_BOOT = 1000
 class Tested:
     """Tables of :func:`test_comparisons` (each has a ``comparison`` column where it applies).
 
-    ``headline``: observed vs null per (comparison, metric, rule); ``null_rates``: every
-    null replicate's rate; ``crossovers``: Gail–Simon tests per (comparison, metric,
-    unit, controller pair); ``orderings``: every ordering of the observed populations.
+    ``headline``: observed vs null per (comparison, metric, rule) with its verdict;
+    ``null_rates``: every null replicate's rate (and its placebo flag); ``crossovers``:
+    crossover tests per (comparison, metric, unit, controller pair); ``orderings``: every
+    ordering of the observed populations; ``placebo_crossovers``: the crossover test on
+    every null replicate's populations.
     """
 
     headline: pd.DataFrame
@@ -42,6 +45,7 @@ class Tested:
     crossovers: pd.DataFrame
     orderings: pd.DataFrame
     ranks: pd.DataFrame
+    placebo_crossovers: pd.DataFrame
     n_boot: int
     level: float
     #: (comparison, metric, rule) → the excess over the null in every resample (B,)
@@ -69,27 +73,48 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
     weights = episode_weights(design, n_boot, rng)
     boot_excess: dict[tuple[str, str, str], np.ndarray] = {}
     frames: dict[str, list[pd.DataFrame]] = {k: [] for k in ("head", "null", "cross", "ord",
-                                                           "rank")}
+                                                           "rank", "placebo")}
     for metric in metrics:
         boot = resampled_metrics(design, weights, (metric,))
         o = orderings(cells, design, boot, metric, level=level)
         for label, (obs_pairs, null_pairs) in designs.items():
-            rows = null_test(o, obs_pairs, null_pairs, ci_level=ci_level)
+            rows, reps = null_test(o, obs_pairs, null_pairs, ci_level=ci_level)
             for row in rows:
                 boot_excess[(label, metric, row["rule"])] = row.pop("boot_excess")
             frames["head"].append(pd.DataFrame(rows).assign(comparison=label))
-            frames["null"].append(null_rates(o, null_pairs).assign(comparison=label))
-            pops = sorted({p for pair in obs_pairs for p in pair})
-            frames["cross"].append(crossover_tests(o, pops, method=method, alpha=alpha)
+            frames["null"].append(reps.assign(comparison=label))
+            frames["cross"].append(crossover_tests(o, _populations(obs_pairs), method=method,
+                                                   alpha=alpha)
                                    .assign(comparison=label, metric=metric))
+            frames["placebo"].append(placebo_crossovers(o, null_pairs, method=method,
+                                                        alpha=alpha)
+                                     .assign(comparison=label, metric=metric))
         table = o.table()
         frames["ord"].append(table[table["population"].isin(observed)])
         frames["rank"].append(controller_ranks(cells, boot[metric], metric, observed,
                                                level=level))
         del boot, o
     cat = {k: pd.concat(v, ignore_index=True) if v else pd.DataFrame() for k, v in frames.items()}
-    return Tested(cat["head"], cat["null"], cat["cross"], cat["ord"], cat["rank"], n_boot,
-                  level, boot_excess)
+    return Tested(cat["head"], cat["null"], cat["cross"], cat["ord"], cat["rank"],
+                  cat["placebo"], n_boot, level, boot_excess)
+
+
+def _populations(pairs: Sequence[tuple[str, str]]) -> list[str]:
+    return sorted({p for pair in pairs for p in pair})
+
+
+def placebo_crossovers(o: Orderings, nulls: Sequence[Sequence[tuple[str, str]]], *,
+                       method: str = "bh", alpha: float = ALPHA) -> pd.DataFrame:
+    """The crossover test run on each null replicate's populations as if they were the
+    observed (a placebo: none of them differs from another but by chance), one row per
+    replicate: ``tests``, ``crossovers`` (surviving the table's control) and ``any``."""
+    rows = []
+    for k, pairs in enumerate(nulls, start=1):
+        c = crossover_tests(o, _populations(pairs), method=method, alpha=alpha)
+        rows.append({"replicate": k, "tests": int(c["p"].notna().sum()),
+                     "crossovers": int(c["crossover"].sum()),
+                     "any": bool(c["crossover"].any())})
+    return pd.DataFrame(rows, columns=["replicate", "tests", "crossovers", "any"])
 
 
 def controller_ranks(cells: pd.DataFrame, boot: np.ndarray, metric: str,

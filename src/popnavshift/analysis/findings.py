@@ -25,6 +25,8 @@ class Finding(NamedTuple):
     statement: str
     holds: bool
     numbers: dict
+    #: what it claims, for joining its interval check (:mod:`.surviving`): ``kind:detail``
+    key: str = ""
 
 
 def _rates(table1: pd.DataFrame, comparison: str, cells: str) -> pd.Series:
@@ -39,7 +41,7 @@ def burden_exceeds_time(rates: pd.Series, label: str) -> Finding:
     time = rates["robot_time"]
     holds = rates["mean_delay"] > time and rates["worst_decile"] > time
     return Finding(f"Burden reversal rates exceed the robot-time rate ({label})", bool(holds),
-                   {m: float(rates[m]) for m in METRICS})
+                   {m: float(rates[m]) for m in METRICS}, f"burden_vs_time:{label}")
 
 
 def completed_lower(all_cells: pd.Series, completed: pd.Series, label: str) -> Finding:
@@ -47,7 +49,7 @@ def completed_lower(all_cells: pd.Series, completed: pd.Series, label: str) -> F
     holds = all(completed[m] < all_cells[m] for m in METRICS)
     numbers = {m: (float(all_cells[m]), float(completed[m])) for m in METRICS}
     return Finding(f"Completed-cell reversal rates are lower than all-cell rates ({label})",
-                   bool(holds), numbers)
+                   bool(holds), numbers, f"completed_lower:{label}")
 
 
 WIDTH_SCENES: tuple[str, ...] = ("sidewalk", "bottleneck")  # the two panels of the paper's Fig. 4
@@ -62,7 +64,7 @@ def width_decreases(by_width: pd.DataFrame, label: str) -> Finding:
     numbers: dict = {float(w): float(v) for w, v in s.items()}
     numbers["monotonic"] = bool(len(s) >= 2 and (np.diff(s.to_numpy()) < 0).all())
     return Finding(f"Population sensitivity is larger at the narrowest than the widest width "
-                   f"({label})", bool(holds), numbers)
+                   f"({label})", bool(holds), numbers, f"width:{label}")
 
 
 #: our reading of "approximately": within this fraction of the paper's ratio
@@ -77,7 +79,7 @@ def tail_ratio(outcomes: pd.DataFrame, k: float = TAIL_TO_MEAN_RATIO,
     ratio = outcomes["worst_decile"] / outcomes["mean_delay"]
     holds = len(ratio) > 0 and ratio.between(k * (1 - rel_tol), k * (1 + rel_tol)).all()
     return Finding(f"Worst-decile delay is about {k:g}× the mean delay", bool(holds),
-                   {c: float(r) for c, r in ratio.items()})
+                   {c: float(r) for c, r in ratio.items()}, "tail_ratio")
 
 
 def controller_extreme(outcomes: pd.DataFrame, column: str, controller: str, *,
@@ -88,7 +90,7 @@ def controller_extreme(outcomes: pd.DataFrame, column: str, controller: str, *,
     word = "highest" if highest else "lowest"
     scope = "" if among is None else f" among {', '.join(among)}"
     return Finding(f"{controller} has the {word} {column}{scope}", bool(best == controller),
-                   {c: float(v) for c, v in col.items()})
+                   {c: float(v) for c, v in col.items()}, f"extreme:{controller}:{column}")
 
 
 def matched_change_direction(change: pd.DataFrame, expected: dict[str, int]) -> Finding:
@@ -97,7 +99,7 @@ def matched_change_direction(change: pd.DataFrame, expected: dict[str, int]) -> 
     got = {c: float(sel.get(c, np.nan)) for c in expected}
     holds = all(np.sign(got[c]) == s for c, s in expected.items())
     return Finding("Matched deadline shift lowers delay under reactive and robot_orca and "
-                   "raises it under early_yield", bool(holds), got)
+                   "raises it under early_yield", bool(holds), got, "matched_direction")
 
 
 def paper_findings(table1: pd.DataFrame, outcomes: pd.DataFrame, widths: dict[str, pd.DataFrame],

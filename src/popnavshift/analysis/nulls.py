@@ -7,18 +7,18 @@ population laid out together (:func:`popnavshift.analysis.significance.orderings
 so one paired episode bootstrap is shared by the observed and null populations):
 
 * **observed** rate and each null replicate's rate, raw and significant;
-* **excess** = observed − mean of the null rates, with an interval from the shared
-  episode bootstrap (observed and null rates recomputed on every resample:
-  excess_b = obs_b − mean_k null_{k,b}): excess ± z · √(n/(n−1)) · SD_b(excess_b), n the
-  episodes per cell. Centred on the estimate, not the percentile interval: with few
-  episodes per cell a resample that repeats an episode carries more noise and so
-  reverses more, which shifts the resampled rates (their spread is sound, their centre
-  is not); √(n/(n−1)) undoes the plug-in variance's bias;
-* **p-value** = (1 + #{null_k ≥ observed}) / (1 + P), the permutation p-value of
-  P null replicates (exact for the swap null, whose replicates are exchangeable
-  with the observed pair under the null).
+* **verdict** on the excess = observed − mean of the null rates, from the spread
+  *between* replicates (:mod:`.verdicts`: the prediction t for the raw rule, the exact
+  permutation p = (1 + #{null_k ≥ observed}) / (1 + P) for the significant rule);
+* a second, labelled figure: the excess's **episode-only interval** ("beyond episode
+  noise for these personas"), from the shared episode bootstrap (excess_b = obs_b −
+  mean_k null_{k,b}): excess ± z · √(n/(n−1)) · SD_b(excess_b), n the episodes per cell.
+  It holds the replicates fixed, so it misses their spread and is no test against the
+  null (on placebos it excludes 0 far more often than 5 %: :mod:`.calibrate`). Centred
+  on the estimate: a resample that repeats an episode reverses more, which shifts the
+  resampled rates (their spread is sound, their centre is not).
 
-Pure functions; definitions in ``docs/analysis.md`` §7.
+Pure functions; definitions in ``docs/analysis.md`` §7 and §10.
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ from scipy import stats
 from ..populations.nulls import SIZED_SOURCE, parse_null, sized_name, swap_name
 from .reversals import MATCHED, population_pairs
 from .significance import Orderings, PairCounts, pair_counts
+from .verdicts import decide
 
 RULES: tuple[str, ...] = ("sig", "raw")
 CI_LEVEL = 0.95  # coverage of the excess interval
@@ -72,13 +73,14 @@ def sized_pairs(observed_pairs: Sequence[tuple[str, str]], k: int) -> list[tuple
 
 def null_test(o: Orderings, observed: Sequence[tuple[str, str]],
               nulls: Sequence[Sequence[tuple[str, str]]], *,
-              ci_level: float = CI_LEVEL) -> list[dict]:
+              ci_level: float = CI_LEVEL) -> tuple[list[dict], pd.DataFrame]:
     """Observed vs null rates of one metric, for both rules.
 
     ``observed`` is a list of population pairs; ``nulls`` one list of pairs per null
-    replicate (the same design). Returns one dict per rule with ``observed``,
-    ``null_mean``, ``null_sd``, ``null_min``, ``null_max``, ``excess``, ``ci_low``,
-    ``ci_high``, ``p_value``, ``n_null`` and the counts of the observed rate.
+    replicate (the same design). Returns one dict per rule — ``observed``, the counts,
+    ``null_mean``, ``null_sd``, ``null_min``, ``null_max``, the verdict and its test
+    (:func:`.verdicts.decide`), the episode-only interval ``episode_ci_low/high`` and its
+    resamples ``boot_excess`` — and the replicates' table (:func:`replicate_table`).
     """
     obs = pair_counts(o, observed)
     reps = [pair_counts(o, pairs) for pairs in nulls]
@@ -87,7 +89,7 @@ def null_test(o: Orderings, observed: Sequence[tuple[str, str]],
     for rule in RULES:
         row, boot = excess_over(obs, reps, rule, ci_level=ci_level, n_episodes=n)
         out.append({"metric": o.metric, "rule": rule, **row, "boot_excess": boot})
-    return out
+    return out, replicate_table(o.metric, reps, ci_level=ci_level, n_episodes=n)
 
 
 def episodes_per_cell(o: Orderings) -> float:
@@ -96,39 +98,64 @@ def episodes_per_cell(o: Orderings) -> float:
     return float(np.median(n)) if n.size else float("nan")
 
 
+def _boot_excess(obs: PairCounts, reps: Sequence[PairCounts], rule: str) -> np.ndarray:
+    """(B,) observed − mean null rate in every episode resample (NaN-skipping)."""
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return obs.boot_rate(rule) - np.nanmean(np.vstack([r.boot_rate(rule) for r in reps]),
+                                                axis=0)
+
+
 def excess_over(obs: PairCounts, reps: Sequence[PairCounts], rule: str, *,
                 ci_level: float = CI_LEVEL, n_episodes: float = np.inf
                 ) -> tuple[dict, np.ndarray]:
-    """The excess of ``obs`` over the null replicates ``reps`` under ``rule``, and its
-    resampled values (B,) (NaN where a resample has no comparable comparison);
-    ``n_episodes`` per cell scales the interval (module doc)."""
+    """The excess of ``obs`` over the null replicates ``reps`` under ``rule``: its verdict
+    (:func:`.verdicts.decide`, on the spread between replicates) and, as a second figure,
+    its episode-only interval (module doc) with the resampled values (B,) behind it (NaN
+    where a resample has no comparable comparison)."""
     rate = obs.rate(rule)
     null = np.array([r.rate(rule) for r in reps], dtype=float)
     finite = null[np.isfinite(null)]
     row = {"observed": rate, "reversals": int(getattr(obs, f"{rule}_reversals").sum()),
            "comparable": int(getattr(obs, f"{rule}_comparable").sum()),
-           "n_null": int(finite.size), "n_episodes": n_episodes}
+           "n_null": int(finite.size), "n_episodes": n_episodes,
+           **decide(rate, finite, rule, alpha=1 - ci_level)}
     if finite.size == 0 or not np.isfinite(rate):
         return {**row, "null_mean": np.nan, "null_sd": np.nan, "null_min": np.nan,
-                "null_max": np.nan, "excess": np.nan, "ci_low": np.nan, "ci_high": np.nan,
-                "p_value": np.nan}, np.full(len(obs.boot_raw_reversals), np.nan)
-    with np.errstate(all="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        boot = obs.boot_rate(rule) - np.nanmean(np.vstack([r.boot_rate(rule) for r in reps]),
-                                                axis=0)
-    excess = rate - float(finite.mean())
-    low, high = centred_interval(excess, boot, ci_level, n_episodes)
+                "null_max": np.nan, "episode_ci_low": np.nan, "episode_ci_high": np.nan
+                }, np.full(len(obs.boot_raw_reversals), np.nan)
+    boot = _boot_excess(obs, reps, rule)
+    low, high = centred_interval(row["excess"], boot, ci_level, n_episodes)
     return {**row, "null_mean": float(finite.mean()),
             "null_sd": float(finite.std(ddof=1)) if finite.size > 1 else np.nan,
             "null_min": float(finite.min()), "null_max": float(finite.max()),
-            "excess": excess, "ci_low": float(low),
-            "ci_high": float(high),
-            "p_value": permutation_p(rate, finite)}, boot
+            "episode_ci_low": float(low), "episode_ci_high": float(high)}, boot
 
 
-def permutation_p(observed: float, null: np.ndarray) -> float:
-    """(1 + #{null ≥ observed}) / (1 + P): the permutation p-value of P null replicates."""
-    return (1 + int((np.asarray(null) >= observed).sum())) / (1 + len(null))
+def replicate_table(metric: str, reps: Sequence[PairCounts], *, ci_level: float = CI_LEVEL,
+                    n_episodes: float = np.inf) -> pd.DataFrame:
+    """One row per (null replicate, rule): its rate and counts, and — the replicate taken as
+    the observed against the others (a placebo) — whether the episode-only interval of its
+    excess excludes 0 (``episode_excludes_zero``: how often that interval, which is not a
+    verdict rule, claims an effect where there is none)."""
+    rows = []
+    for rule in RULES:
+        for k, c in enumerate(reps):
+            others = [r for j, r in enumerate(reps) if j != k]
+            rate = c.rate(rule)
+            rest = np.array([r.rate(rule) for r in others], float)
+            rest = rest[np.isfinite(rest)]
+            excludes = np.nan
+            if rest.size and np.isfinite(rate):
+                low, high = centred_interval(rate - rest.mean(), _boot_excess(c, others, rule),
+                                             ci_level, n_episodes)
+                excludes = float(low > 0 or high < 0) if np.isfinite(low) else np.nan
+            rows.append({"metric": metric, "replicate": k + 1, "rule": rule, "rate": rate,
+                         "reversals": int(getattr(c, f"{rule}_reversals").sum()),
+                         "comparable": int(getattr(c, f"{rule}_comparable").sum()),
+                         "episode_excludes_zero": excludes})
+    return pd.DataFrame(rows, columns=["metric", "replicate", "rule", "rate", "reversals",
+                                       "comparable", "episode_excludes_zero"])
 
 
 def centred_interval(estimate: float, samples: np.ndarray, level: float,
@@ -150,9 +177,10 @@ def burden_beyond_time(headline: pd.DataFrame, null_rates: pd.DataFrame,
 
     Per (comparison, rule): the difference d = rate(burden) − rate(robot time),
     observed and per null replicate; its excess over the null (observed d − mean
-    null d) with an interval from the shared resamples (excess_b(burden) −
-    excess_b(time)) and the permutation p-value of d. Every null also reverses burden
-    more often than robot time, so only an excess of d says the population does.
+    null d) decided like a rate (:func:`.verdicts.decide` on the replicates' d), with the
+    episode-only interval beside it (excess_b(burden) − excess_b(time)). Every null also
+    reverses burden more often than robot time, so only an excess of d says the
+    population does.
     """
     rows = []
     for (comp, rule), h in headline.groupby(["comparison", "rule"], sort=False):
@@ -165,31 +193,16 @@ def burden_beyond_time(headline: pd.DataFrame, null_rates: pd.DataFrame,
         d_null = (wide[burden] - wide["robot_time"]).to_numpy(float) if len(wide) else np.array([])
         d_null = d_null[np.isfinite(d_null)]
         boot = (boot_excess[(comp, burden, rule)] - boot_excess[(comp, "robot_time", rule)])
-        excess = d_obs - d_null.mean() if d_null.size else np.nan
-        n = float(h.at[burden, "n_episodes"]) if "n_episodes" in h else np.inf
-        low, high = centred_interval(excess, boot, ci_level, n) if d_null.size else (np.nan,
-                                                                                    np.nan)
+        test = decide(d_obs, d_null, rule, alpha=1 - ci_level)
+        n_eps = float(h.at[burden, "n_episodes"]) if "n_episodes" in h else np.inf
+        low, high = (centred_interval(test["excess"], boot, ci_level, n_eps) if d_null.size
+                     else (np.nan, np.nan))
         rows.append({"comparison": comp, "rule": rule, "metric": burden,
                      "observed_difference": d_obs,
                      "null_difference": d_null.mean() if d_null.size else np.nan,
-                     "excess": excess, "ci_low": low, "ci_high": high,
-                     "p_value": permutation_p(d_obs, d_null) if d_null.size else np.nan,
+                     **test, "episode_ci_low": low, "episode_ci_high": high,
                      "n_null": int(d_null.size)})
     return pd.DataFrame(rows)
-
-
-def null_rates(o: Orderings, nulls: Sequence[Sequence[tuple[str, str]]]) -> pd.DataFrame:
-    """One row per (null replicate, rule): the null's rate and counts (for figures)."""
-    rows = []
-    for k, pairs in enumerate(nulls, start=1):
-        c = pair_counts(o, pairs)
-        for rule in RULES:
-            rows.append({"metric": o.metric, "replicate": k, "rule": rule,
-                         "rate": c.rate(rule),
-                         "reversals": int(getattr(c, f"{rule}_reversals").sum()),
-                         "comparable": int(getattr(c, f"{rule}_comparable").sum())})
-    return pd.DataFrame(rows, columns=["metric", "replicate", "rule", "rate", "reversals",
-                                       "comparable"])
 
 
 def headline_designs(populations: Sequence[str],

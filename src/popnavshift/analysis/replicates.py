@@ -9,9 +9,8 @@ seed's draw has no suffix); every cell gets 3 variants per seed set.
 * ``replicability``: per seed set alone (3 variants per cell, the paper's design),
   the chance that a reversal seen in one seed set recurs, in the same direction, in
   another, beside the marginal reversal rate; for the observed pair and its null.
-* ``seed_sets_needed``: the seed sets a design needs so that an excess of a given
-  size is detected at one-sided level α with the given power, from the excess
-  interval at the largest design measured, assuming its width shrinks as 1/√S.
+
+What would decide an undecided rate is :mod:`.power`'s, from this curve.
 """
 
 from __future__ import annotations
@@ -21,7 +20,6 @@ from itertools import permutations
 
 import numpy as np
 import pandas as pd
-from scipy import stats
 
 from .delay import cell_metrics, paired_delays
 from .evidence import test_comparisons
@@ -30,10 +28,6 @@ from .significance import LEVEL
 
 VARIANTS_PER_SEED_SET = 3
 CURVE_BOOT = 200  # resamples per point of the curve (its last point is the headline's)
-POWER = 0.80
-ALPHA_ONE_SIDED = 0.05
-#: The smallest excess over the null worth detecting (rate units: 5 percentage points).
-MIN_EFFECT = 0.05
 
 
 def seed_sets(table: pd.DataFrame) -> pd.Series:
@@ -120,55 +114,3 @@ def replicability(runs: pd.DataFrame, pedestrians: pd.DataFrame,
                      "reversals": n_rev, "comparable": n_comp, "recurred": recur,
                      "opportunities": given, "seed_sets": len(order)})
     return pd.DataFrame(rows)
-
-
-def seed_sets_needed(headline: pd.DataFrame, seed_sets_used: int, *,
-                     effect: float | None = None, min_effect: float = MIN_EFFECT,
-                     alpha: float = ALPHA_ONE_SIDED, power: float = POWER,
-                     ci_level: float = 0.95) -> pd.DataFrame:
-    """Per headline row: how many seed sets would decide it, and its verdict now.
-
-    The standard error of the excess at ``seed_sets_used`` is read off its interval
-    (width / (2 z)) and assumed to shrink as 1/√S (seed sets are independent draws of
-    the same cells). The effect δ to detect is ``effect`` if given, else the row's
-    observed excess where it is at least ``min_effect``, else ``min_effect`` (the
-    smallest excess worth detecting, in rate units). Then
-    S* = ⌈S (z_{1−α} + z_{power})² se² / δ²⌉ seed sets detect δ at one-sided level α
-    with the given power.
-
-    ``verdict``: ``beats the null`` (the interval excludes 0 from above and p ≤ α),
-    ``above the null (too few null replicates …)`` (the interval is above 0 but with P
-    replicates p cannot reach α: 1/(1 + P) > α),
-    ``below the null`` (the interval lies below 0), ``no excess ≥ δ`` (the interval
-    lies below ``min_effect``: the data rule out an excess that large) or
-    ``undecided`` (more seed sets would decide: ``seed_sets_needed``).
-    """
-    z_ci = stats.norm.ppf(0.5 + ci_level / 2)
-    z = stats.norm.ppf(1 - alpha) + stats.norm.ppf(power)
-    out = headline.copy()
-    se = (out["ci_high"] - out["ci_low"]) / (2 * z_ci)
-    observed = out["excess"] >= min_effect
-    if effect is None:
-        delta = out["excess"].where(observed, min_effect)
-        out["effect_source"] = np.where(observed, "observed excess", "smallest of interest")
-    else:
-        delta = pd.Series(float(effect), index=out.index)
-        out["effect_source"] = "given"
-    with np.errstate(all="ignore"):
-        need = np.ceil(seed_sets_used * (z * se / delta) ** 2)
-    p = out["p_value"] if "p_value" in out else pd.Series(0.0, index=out.index)
-    n_null = out["n_null"] if "n_null" in out else pd.Series(np.inf, index=out.index)
-    beats = (out["ci_low"] > 0) & (p <= alpha)
-    coarse = (out["ci_low"] > 0) & (1.0 / (1.0 + n_null) > alpha)  # p cannot reach alpha
-    below = out["ci_high"] < 0
-    small = out["ci_high"] < min_effect
-    out["verdict"] = np.select(
-        [beats, coarse, below, small],
-        ["beats the null", "above the null (too few null replicates for p ≤ 0.05)",
-         "below the null", f"no excess ≥ {min_effect:g}"], "undecided")
-    out["effect"] = delta
-    out["se"] = se
-    out["seed_sets_needed"] = need.where(delta > 0)
-    out["decided"] = out["verdict"] != "undecided"
-    out["seed_sets_used"] = seed_sets_used
-    return out

@@ -4,8 +4,10 @@ Pipeline: cell metrics + their paired episode bootstrap (:mod:`.resample`) →
 ``orderings`` (per metric: every controller pair in every unit and population,
 its difference D = m(c₁) − m(c₂), a percentile interval and a significant sign)
 → ``pair_counts`` (raw and significant reversals between population pairs, for
-the point estimate and every resample) and ``crossover_tests`` (Gail–Simon test
-of a qualitative interaction across populations, with Holm or BH control).
+the point estimate and every resample) and ``crossover_tests`` (an
+intersection–union test of a qualitative interaction across populations, valid for
+populations that share episodes and personas, with Holm or BH control and the
+crossover size each test could detect).
 
 * **Significant ordering**: the bootstrap interval of D at ``level`` (default 90 %)
   excludes 0; otherwise the ordering counts as tied. With n episodes in the cell,
@@ -36,7 +38,7 @@ from itertools import combinations
 
 import numpy as np
 import pandas as pd
-from scipy import stats
+from scipy import optimize, stats
 
 from .delay import CELL_KEY, UNIT
 from .resample import Design
@@ -44,6 +46,7 @@ from .reversals import TOLERANCES, tie_sign
 
 LEVEL = 0.90  # coverage of an ordering's interval
 ALPHA = 0.05  # family-wise / false-discovery level of the crossover tests
+POWER = 0.80  # the power at which a crossover test states the size it can detect
 
 
 @dataclass
@@ -259,42 +262,60 @@ def pair_counts(o: Orderings, pairs: Sequence[tuple[str, str]]) -> PairCounts:
 # --- crossover (qualitative interaction) tests ---------------------------------------------
 
 
-def gail_simon(diff: np.ndarray, se: np.ndarray, df: np.ndarray | None = None) -> np.ndarray:
-    """Gail–Simon (1985) p-value of a qualitative interaction, per row.
-
-    ``diff`` and ``se`` are (n, q): a treatment difference and its standard error
-    in q subgroups (here: one controller difference under q populations); NaN
-    subgroups are dropped. With z = d/s, Q⁻ = Σ z² [d > 0], Q⁺ = Σ z² [d < 0],
-    Q = min(Q⁻, Q⁺), and p = Σ_{h=1}^{q−1} P(χ²_h > Q) · Binom(h; q − 1, ½), the
-    least-favourable null distribution (no crossover). NaN with fewer than 2
-    subgroups. A zero SE with a non-zero difference is an infinitely precise sign.
-    ``df`` (n,), when given, are the degrees of freedom of each row's d/s: each is
-    mapped to the normal quantile of its t probability, so small samples are not
-    read as normal.
-    """
+def one_sided_p(diff: np.ndarray, se: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(p of D > 0, p of D < 0) per entry: t = D / (√(n/(n−1)) · SE) on n − 1 degrees of
+    freedom (the bootstrap SE's plug-in bias undone); NaN where n < 2 or D, SE are missing.
+    A zero SE with a non-zero D is an infinitely precise sign."""
     d, s = np.asarray(diff, float), np.asarray(se, float)
-    ok = np.isfinite(d) & np.isfinite(s)
+    n = np.broadcast_to(np.asarray(n, float), d.shape)
+    ok = np.isfinite(d) & np.isfinite(s) & (n >= 2)
     with np.errstate(divide="ignore", invalid="ignore"):
-        z = np.where(ok, np.where(d == 0, 0.0, d / s), 0.0)
-        if df is not None:
-            dfs = np.broadcast_to(np.asarray(df, float)[:, None], z.shape)
-            good = np.isfinite(z) & (dfs >= 1)
-            z = np.where(good, stats.norm.ppf(stats.t.cdf(np.where(good, z, 0.0),
-                                                           np.maximum(dfs, 1))), z)
-            ok &= dfs >= 1
-            z = np.where(ok, z, 0.0)
-    z2 = np.nan_to_num(z**2, nan=0.0, posinf=np.inf)
-    q_minus = np.where(ok & (d > 0), z2, 0.0).sum(axis=1)
-    q_plus = np.where(ok & (d < 0), z2, 0.0).sum(axis=1)
-    q = np.minimum(q_minus, q_plus)
-    k = ok.sum(axis=1)
-    p = np.full(len(d), np.nan)
-    for n in np.unique(k[k >= 2]):
-        rows = k == n
-        h = np.arange(1, n)
-        weights = stats.binom.pmf(h, n - 1, 0.5)
-        p[rows] = (stats.chi2.sf(q[rows, None], h[None, :]) * weights).sum(axis=1)
-    return p
+        scaled = s * np.sqrt(n / (n - 1))
+        t = np.where(d == 0, 0.0, d / scaled)
+        df = np.maximum(n - 1, 1)
+        up = np.where(ok, stats.t.sf(t, df), np.nan)
+        down = np.where(ok, stats.t.cdf(t, df), np.nan)
+    return up, down
+
+
+def crossover_p(diff: np.ndarray, se: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """The intersection–union p-value of a crossover, per row of ``diff``/``se`` (m, q): one
+    controller difference under q populations, n (m,) episodes behind each row.
+
+    A crossover is one population where D > 0 and another where D < 0, both beyond noise.
+    p₊ = min(1, q′ · min_j p_j(D > 0)) and p₋ likewise, q′ the populations with a value
+    (Bonferroni over the populations: valid whatever their dependence — they share every
+    episode, and cohorts share personas); p = max(p₊, p₋). NaN with fewer than 2 values.
+    """
+    up, down = one_sided_p(diff, se, np.asarray(n, float)[:, None])
+    q = np.isfinite(up).sum(axis=1)
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        p_up = np.minimum(1.0, q * np.nanmin(up, axis=1))
+        p_down = np.minimum(1.0, q * np.nanmin(down, axis=1))
+    return np.where(q >= 2, np.maximum(p_up, p_down), np.nan)
+
+
+def detectable_crossover(se: np.ndarray, n: np.ndarray, q: np.ndarray, m: int, *,
+                         alpha: float = ALPHA, power: float = POWER) -> np.ndarray:
+    """The crossover the test of each row would find with probability ``power``: ±Y (metric
+    units) under two of its q populations, Y returned per row (m rows, SE the median over its
+    populations, n episodes). A single crossover among m rows survives the table's control
+    when its p ≤ α/m (Benjamini–Hochberg with one discovery is Bonferroni), so each side needs
+    its one-sided p ≤ α/(m q): per side the noncentrality λ with
+    P(t_{n−1}(λ) > t_{n−1, 1−α/(mq)}) = √power, and Y = λ · √(n/(n−1)) · SE. NaN where n < 2."""
+    se, n, q = (np.asarray(x, float) for x in (se, n, q))
+    out = np.full(se.shape, np.nan)
+    ok = np.isfinite(se) & (n >= 2) & (q >= 2)
+    side = np.sqrt(power)
+    for nn, qq in {(a, b) for a, b in zip(n[ok], q[ok], strict=True)}:
+        rows = ok & (n == nn) & (q == qq)
+        df = nn - 1
+        crit = stats.t.isf(alpha / (max(m, 1) * qq), df)
+        lam = optimize.brentq(lambda x, c=crit, d=df: stats.nct.sf(c, d, x) - side,
+                              0.0, 10 * crit + 50)
+        out[rows] = lam * np.sqrt(nn / (nn - 1)) * se[rows]
+    return out
 
 
 def holm(p: np.ndarray) -> np.ndarray:
@@ -324,27 +345,33 @@ ADJUST = {"holm": holm, "bh": bh}
 
 def crossover_tests(o: Orderings, populations: Sequence[str], *, method: str = "bh",
                     alpha: float = ALPHA) -> pd.DataFrame:
-    """Gail–Simon test per (unit, controller pair) across ``populations``, adjusted over
-    the table's comparisons with ``method`` (``"holm"`` or ``"bh"``). Each subgroup's
-    bootstrap SE is scaled by √(n/(n−1)) and its z read through a t with n − 1
-    degrees of freedom (n = episodes in the cell).
+    """The crossover test (:func:`crossover_p`) per (unit, controller pair) across
+    ``populations``, adjusted over the table's rows with ``method`` (``"holm"`` or ``"bh"``).
 
     Returns one row per (unit, controller pair): UNIT columns, ``ctrl_1, ctrl_2``,
-    ``n_populations``, ``p``, ``p_adj`` and ``crossover`` (p_adj ≤ ``alpha``).
+    ``n_populations``, ``p``, ``p_adj``, ``crossover`` (p_adj ≤ ``alpha``), ``se`` (the
+    median SE over the populations), ``n_episodes`` and ``detectable``
+    (:func:`detectable_crossover`: the ±size this row could see with 80 % power at this
+    table's level; metric units).
     """
     idx = [o.index(p) for p in populations]
     d = np.moveaxis(o.diff[idx], 0, -1).reshape(-1, len(idx))
     s = np.moveaxis(o.se[idx], 0, -1).reshape(-1, len(idx))
     n_u, n_c = o.diff.shape[1:]
     n = np.repeat(o.n_episodes, n_c).astype(float)  # episodes behind each row's estimates
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = s * np.sqrt(n / (n - 1))[:, None]  # undo the plug-in variance's bias
-    p = gail_simon(d, s, df=n - 1)
+    p = crossover_p(d, s, n)
     out = o.units.iloc[np.repeat(np.arange(n_u), n_c)].reset_index(drop=True)
     out["ctrl_1"] = [o.pairs[i][0] for i in np.tile(np.arange(n_c), n_u)]
     out["ctrl_2"] = [o.pairs[i][1] for i in np.tile(np.arange(n_c), n_u)]
-    out["n_populations"] = np.isfinite(d).sum(axis=1)
+    out["n_populations"] = (np.isfinite(d) & np.isfinite(s)).sum(axis=1)
     out["p"] = p
     out["p_adj"] = ADJUST[method](p)
     out["crossover"] = out["p_adj"] <= alpha
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        out["se"] = np.nanmedian(np.where(np.isfinite(d), s, np.nan), axis=1)
+    out["n_episodes"] = n
+    out["detectable"] = detectable_crossover(out["se"].to_numpy(), n,
+                                             out["n_populations"].to_numpy(),
+                                             int(np.isfinite(p).sum()), alpha=alpha)
     return out

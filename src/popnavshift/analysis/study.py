@@ -180,7 +180,7 @@ def analyse(runs: pd.DataFrame, peds: pd.DataFrame, *, selection: str = "",
         a.missing["findings"] = why
     if a.findings:
         a.tables["findings"] = pd.DataFrame(
-            [{"statement": f.statement, "holds": f.holds,
+            [{"key": f.key, "statement": f.statement, "holds": f.holds,
               "numbers": json.dumps(f.numbers, default=str)} for f in a.findings])
     return a
 

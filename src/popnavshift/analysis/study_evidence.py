@@ -5,14 +5,19 @@ comparison at its own design — the matched pair with its swap null over every 
 set they share, the populations of the ``main`` part with their size-matched null
 on the main grid — and computes with :mod:`popnavshift.analysis` (pure functions):
 
-* ``evidence_headline``: observed vs null rates per (comparison, metric, rule),
-  excess with interval and permutation p-value;
+* ``evidence_headline``: observed vs null rates per (comparison, metric, rule), the
+  verdict with its deciding interval and test (:mod:`.verdicts`), the permutation p and the
+  episode-only interval;
 * ``evidence_null_rates``: every null replicate's rate;
-* ``evidence_crossovers``: Gail–Simon crossover tests per comparison, BH-adjusted;
+* ``evidence_calibration``: every verdict rule's false-positive rate on placebos drawn
+  from those replicates (:mod:`.calibrate`), with ``evidence_placebo_crossovers``;
+* ``evidence_crossovers``: crossover tests per comparison, BH-adjusted, with the size each
+  could detect;
 * ``evidence_orderings``: every observed controller ordering with its interval;
 * ``evidence_ranks``: each controller's rank per population with rank intervals;
-* ``evidence_curve``, ``evidence_replicability``, ``evidence_power``: the matched
-  comparison against its number of seed sets;
+* ``evidence_curve``, ``evidence_replicability``: each comparison run on several seed sets
+  against their number; ``evidence_power``: what would decide each undecided rate, and its
+  cost (:mod:`.power`);
 * ``evidence_findings``: the paper's findings under the significance rule
   (:mod:`popnavshift.analysis.surviving`), and ``evidence_burden``: "burden reverses
   more than robot time" against the nulls.
@@ -27,9 +32,11 @@ from ..engine.folder import StudyFolder, main_part
 from ..populations.build import HALF_SUFFIXES
 from ..populations.nulls import parse_null
 from ..tables import NO_ROBOT
+from .calibrate import calibration_table
 from .evidence import complete_design, test_comparisons
 from .nulls import burden_beyond_time, design_populations, headline_designs
-from .replicates import replicability, replicate_curve, seed_sets, seed_sets_needed
+from .power import Costs, design_advice
+from .replicates import replicability, replicate_curve, seed_sets
 from .significance import LEVEL
 from .surviving import surviving_findings
 
@@ -80,17 +87,25 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
                            ignore_index=True)
         add = {"headline": head, "null_rates": tested.null_rates, "burden": burden,
                "crossovers": tested.crossovers,
+               "placebo_crossovers": tested.placebo_crossovers,
                "orderings": tested.orderings.assign(comparison=label),
                "ranks": tested.ranks.assign(comparison=label)}
+        add.update(_replicates(r, p, one, obs_pops, tested.headline, label=label, seed=seed,
+                               rng_seed=rng_seed, level=level, missing=missing))
         if head["n_null"].max() > 0:
-            add["power"] = seed_sets_needed(head, n_sets)
+            # a comparison run on one seed set borrows how the null's spread falls with seed
+            # sets from another comparison of the study (same cells, metrics and rules)
+            curve, source = add.get("curve"), label
+            if curve is None and frames.get("curve"):
+                curve = frames["curve"][0]
+                source = str(curve["comparison"].iloc[0])
+            add["power"] = design_advice(head, curve,
+                                         design_costs(r, obs_pops, nulls, study.manifest)
+                                         ).assign(sd_exponent_from=source)
         else:
             missing[f"power_{label}"] = (f"the study ran no null of the {label} comparison "
                                          f"({'a swap' if label == 'matched' else 'a sized'} "
                                          "null part)")
-        if label == "matched":
-            add.update(_replicates(r, p, one, obs_pops, tested.headline, seed=seed,
-                                   rng_seed=rng_seed, level=level, missing=missing))
         if label == "all_pairs":
             add["findings"] = surviving_findings(r[r["population"].isin(obs_pops)],
                                                  p[p["population"].isin(obs_pops)],
@@ -99,17 +114,35 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
         for k, v in add.items():
             frames.setdefault(k, []).append(v)
     tables = {PREFIX + k: pd.concat(v, ignore_index=True) for k, v in frames.items()}
+    if PREFIX + "null_rates" in tables:
+        tables[PREFIX + "calibration"] = calibration_table(
+            tables[PREFIX + "null_rates"], tables.get(PREFIX + "placebo_crossovers"))
     return tables, missing
 
 
+def design_costs(runs: pd.DataFrame, observed: list[str], nulls: list, manifest: dict
+                 ) -> Costs:
+    """What one more seed set or null replicate of a comparison design costs, from its runs
+    and the study's measured throughput (``manifest.json``'s timings)."""
+    n_sets = max(int(seed_sets(runs).nunique()), 1)
+    per_pop = float(runs[runs["population"].isin(observed)].groupby("population").size().mean())
+    per_rep = len({x for pair in nulls[0] for x in pair} - set(observed)) if nulls else 0
+    t = manifest.get("timings", {})
+    speed = (t["runs_executed"] / t["simulation_s"]
+             if t.get("simulation_s") and t.get("runs_executed") else float("nan"))
+    return Costs(per_pop / n_sets, len(observed), per_rep, speed)
+
+
 def _replicates(runs: pd.DataFrame, peds: pd.DataFrame, design: dict, observed: list[str],
-                full: pd.DataFrame, *, seed: int, rng_seed: int, level: float,
+                full: pd.DataFrame, *, label: str, seed: int, rng_seed: int, level: float,
                 missing: dict[str, str]) -> dict[str, pd.DataFrame]:
-    """The matched comparison against its seed sets: rates curve and replicability."""
+    """A comparison against its seed sets: rates curve and replicability (the curve is what
+    the power advice measures the fall of the null's spread on)."""
     if int(seed_sets(runs).nunique()) < 2:
-        missing["curve"] = ("the matched pair was run on one episode seed set: add `seeds` to "
-                            "its part to see rates against replicates")
+        missing[f"curve_{label}"] = (f"the {label} comparison was run on one episode seed set: "
+                                     "add `seeds` to its parts to see rates against replicates")
         return {}
     curve = replicate_curve(runs, peds, design, observed, study_seed=seed, seed=rng_seed,
                             level=level, full=full)
-    return {"curve": curve, "replicability": replicability(runs, peds, design, study_seed=seed)}
+    return {"curve": curve.assign(comparison=label),
+            "replicability": replicability(runs, peds, design, study_seed=seed)}

@@ -29,6 +29,7 @@ from .paper_reference import MATCHED_CHANGE_SIGN
 from .resample import build_design, episode_weights, resampled_metrics
 from .reversals import MATCHED
 from .significance import LEVEL
+from .verdicts import ABOVE, BELOW, SMALL
 
 METRICS_NEEDED = ("mean_delay", "worst_decile", "success_share", "timeout_share")
 
@@ -87,7 +88,9 @@ def surviving_findings(runs: pd.DataFrame, pedestrians: pd.DataFrame, *,
                        level: float = LEVEL) -> pd.DataFrame:
     """The paper's controller, width, tail and matched-direction findings with intervals.
 
-    One row per finding: ``statement``, ``statistic`` (what is estimated),
+    One row per finding: ``finding`` (the key of the paper's finding it checks, as
+    :class:`popnavshift.analysis.findings.Finding`), ``statement``, ``statistic`` (what
+    is estimated),
     ``estimate``, ``ci_low``, ``ci_high``, ``holds`` (on the point estimate, as in
     :func:`popnavshift.analysis.findings.paper_findings`) and ``survives`` (the whole
     interval agrees). Findings whose inputs are absent are left out.
@@ -98,7 +101,7 @@ def surviving_findings(runs: pd.DataFrame, pedestrians: pd.DataFrame, *,
     boot = resampled_metrics(design, episode_weights(design, n_boot, rng), METRICS_NEEDED)
     cells = cells.assign(timeout_share=design_share(runs, cells, "timeout"))
     point = {m: cells[m].to_numpy(float) for m in METRICS_NEEDED}
-    checks: list[tuple[str, str, Callable[[dict], np.ndarray], tuple[float, float]]] = []
+    checks: list[tuple[str, str, Callable[[dict], np.ndarray], tuple[float, float], str]] = []
     ctrls = set(cells["controller"])
 
     def extreme(column: str, ctrl: str, highest: bool) -> Callable[[dict], np.ndarray]:
@@ -112,16 +115,21 @@ def surviving_findings(runs: pd.DataFrame, pedestrians: pd.DataFrame, *,
     if set(BUILTIN_CONTROLLERS) <= ctrls:
         checks += [
             ("Reactive has the highest success rate", "success share gap to the next [pp]",
-             lambda v: 100 * extreme("success_share", "reactive", True)(v), (0, np.inf)),
+             lambda v: 100 * extreme("success_share", "reactive", True)(v), (0, np.inf),
+             "extreme:reactive:success_pct"),
             ("Early yielding has the highest timeout rate", "timeout share gap [pp]",
-             lambda v: 100 * extreme("timeout_share", "early_yield", True)(v), (0, np.inf)),
+             lambda v: 100 * extreme("timeout_share", "early_yield", True)(v), (0, np.inf),
+             "extreme:early_yield:timeout_pct"),
             ("Robot-ORCA has the lowest mean delay", "next lowest minus Robot-ORCA [s]",
-             extreme("mean_delay", "robot_orca", False), (0, np.inf)),
+             extreme("mean_delay", "robot_orca", False), (0, np.inf),
+             "extreme:robot_orca:mean_delay"),
             ("Robot-ORCA has the lowest worst-decile delay", "next lowest minus Robot-ORCA [s]",
-             extreme("worst_decile", "robot_orca", False), (0, np.inf)),
+             extreme("worst_decile", "robot_orca", False), (0, np.inf),
+             "extreme:robot_orca:worst_decile"),
             ("Early yielding has a lower mean delay than reactive", "reactive − early yield [s]",
              lambda v: (lambda m: m["reactive"] - m["early_yield"])(
-                 _controller_means(cells, v["mean_delay"])), (0, np.inf)),
+                 _controller_means(cells, v["mean_delay"])), (0, np.inf),
+             "extreme:early_yield:mean_delay"),
         ]
     for ctrl, sign in MATCHED_CHANGE_SIGN.items():
         if ctrl in ctrls and set(MATCHED) <= set(cells["population"]):
@@ -129,29 +137,71 @@ def surviving_findings(runs: pd.DataFrame, pedestrians: pd.DataFrame, *,
             checks.append((f"The matched deadline shift {word} {ctrl}'s mean delay",
                            "deadline − base mean delay [s]",
                            partial(_matched_change_of, cells, ctrl),
-                           (-np.inf, 0) if sign < 0 else (0, np.inf)))
+                           (-np.inf, 0) if sign < 0 else (0, np.inf), "matched_direction"))
     if cells["population"].nunique() >= 2 and cells["scene"].isin(WIDTH_SCENES).any():
         checks.append(("Population sensitivity is larger at the narrowest width (sidewalks and "
                        "bottlenecks)", "sensitivity at narrowest − widest width [s]",
-                       lambda v: _width_gap(cells, v["mean_delay"], WIDTH_SCENES), (0, np.inf)))
+                       lambda v: _width_gap(cells, v["mean_delay"], WIDTH_SCENES), (0, np.inf),
+                       "width:pooled"))
     for ctrl in sorted(ctrls):
         checks.append((f"Worst-decile delay is about 4× the mean delay ({ctrl})",
                        "worst decile / mean delay",
-                       partial(_tail_ratio_of, cells, ctrl), TAIL_BAND))
+                       partial(_tail_ratio_of, cells, ctrl), TAIL_BAND, "tail_ratio"))
     n_episodes = float(design.episodes.groupby("cell").size().median())
     rows = []
-    for statement, statistic, f, (lo, hi) in checks:
+    for statement, statistic, f, (lo, hi), key in checks:
         with warnings.catch_warnings():  # empty selections give NaN: a finding not decided
             warnings.simplefilter("ignore", RuntimeWarning)
             est = float(f(point))
             b = np.asarray(f(boot), dtype=float)
         b = b[np.isfinite(b)]
         ci = centred_interval(est, b, level, n_episodes)
-        rows.append({"statement": statement, "statistic": statistic, "estimate": est,
+        rows.append({"finding": key, "statement": statement, "statistic": statistic,
+                     "estimate": est,
                      "ci_low": float(ci[0]), "ci_high": float(ci[1]),
                      "holds": bool(lo < est < hi),
                      "survives": bool(lo < ci[0] and ci[1] < hi)})
     return pd.DataFrame(rows)
+
+
+#: A reversal finding's label (:func:`.findings.burden_exceeds_time`) → the headline
+#: comparison whose null tests it (:func:`.nulls.burden_beyond_time`).
+BURDEN_COMPARISON = {"matched, all cells": "matched", "all pairs, all cells": "all_pairs"}
+
+
+def findings_list(findings: pd.DataFrame, surviving: pd.DataFrame | None,
+                  burden: pd.DataFrame | None) -> pd.DataFrame:
+    """The paper's findings, each once (the point-estimate table of :mod:`.findings`, with
+    its ``key``): ``holds`` on the point estimate and, where it can be judged beyond noise,
+    ``judged_by`` (its paired-bootstrap interval, or its null for a reversal finding),
+    ``survives`` (True / False; NaN when undecided or not judged) and ``evidence``."""
+    rows = []
+    for f in findings.itertuples(index=False):
+        key = str(getattr(f, "key", "") or "")
+        row = {"statement": f.statement, "holds": bool(f.holds), "judged_by": "point estimate only",
+               "survives": np.nan, "evidence": ""}
+        kind, _, label = key.partition(":")
+        comp = BURDEN_COMPARISON.get(label) if kind == "burden_vs_time" else None
+        if comp and burden is not None and not burden.empty:
+            b = burden[(burden["comparison"] == comp) & (burden["rule"] == "raw")
+                       & (burden["metric"] == "mean_delay")]
+            if not b.empty:
+                r = b.iloc[0]
+                row.update(judged_by="its null (burden − robot-time rate over the null's)",
+                           survives={ABOVE: True, BELOW: False, SMALL: False}.get(r["verdict"],
+                                                                                   np.nan),
+                           evidence=f"excess {100 * r['excess']:+.1f} pp [{100 * r['ci_low']:+.1f},"
+                                    f" {100 * r['ci_high']:+.1f}]: {r['verdict']}")
+        elif surviving is not None and not surviving.empty and "finding" in surviving:
+            sv = surviving[surviving["finding"] == key]
+            if not sv.empty:
+                row.update(judged_by="its 90% paired-bootstrap interval",
+                           survives=bool(sv["survives"].all()),
+                           evidence="; ".join(f"{x.statistic} = {x.estimate:.2f} "
+                                              f"[{x.ci_low:.2f}, {x.ci_high:.2f}]"
+                                              for x in sv.itertuples()))
+        rows.append(row)
+    return pd.DataFrame(rows, columns=["statement", "holds", "judged_by", "survives", "evidence"])
 
 
 def design_share(runs: pd.DataFrame, cells: pd.DataFrame, outcome: str) -> np.ndarray:

@@ -29,11 +29,13 @@ def plan(
                      "power advice (default: the study's own output folder, if it has one)."),
     ] = None,
 ) -> None:
-    """Print the run counts of a study, per part (nothing is run), and how many episode
-    seed sets it needs to separate each headline rate from its null.
+    """Print the run counts of a study, per part (nothing is run), and what would decide
+    each undecided headline rate: more episode seed sets, more null replicates, or nothing
+    reachable, with the runs and minutes it costs.
 
     The advice comes from a study that has already run (its report's
-    tables/evidence_power.csv): run a pilot, then plan the real study with --from.
+    tables/evidence_power.csv, measured on its own replicate curve and nulls): run a pilot,
+    then plan the real study with --from, e.g. `popnavshift plan paper --from study-pilot`.
     """
     from ..engine.plan import count_runs
     from ..engine.study import load_study
@@ -68,31 +70,117 @@ def plan(
                       "on 2 seed sets), then `popnavshift plan "
                       f"{escape(study or 'paper')} --from study-pilot`.", highlight=False)
         return
-    p = Table("comparison", "metric", "rule", "excess", "effect to detect", "seed sets used",
-              "seed sets needed", "verdict now", title=f"power (from {pilot})")
+    p = Table("comparison", "metric", "rule", "excess", "verdict now", "what would decide it",
+              title=f"power (from {escape(str(pilot))})")
     for r in advice.itertuples(index=False):
-        need = "–" if r.seed_sets_needed != r.seed_sets_needed else f"{int(r.seed_sets_needed)}"
-        p.add_row(r.comparison, r.metric, r.rule, f"{100 * r.excess:+.1f} pp",
-                  f"{100 * r.effect:.0f} pp", str(int(r.seed_sets_used)), need, r.verdict)
+        p.add_row(r.comparison, r.metric, r.rule, f"{100 * r.excess:+.1f} pp", r.verdict,
+                  advice_text(r))
     console.print(p)
-    from ..analysis.replicates import ALPHA_ONE_SIDED, MIN_EFFECT, POWER
+    console.print("what would decide it: the fewest seed sets and null replicates that decide the "
+                  "verdict with 80% power if the excess stays at its estimate, with the null's "
+                  "spread falling with seed sets as the pilot's own replicate curve measured; "
+                  "add them as `seeds:` and `replicates:` to the parts that run the comparison "
+                  "and its null.", highlight=False)
 
-    console.print(f"seed sets needed: to detect the effect (the observed excess, or "
-                  f"{100 * MIN_EFFECT:g} pp when smaller) with {100 * POWER:g}% power at "
-                  f"one-sided {100 * ALPHA_ONE_SIDED:g}%; add them as `seeds:` to the parts "
-                  "that run the comparison and its null.", highlight=False)
+
+def advice_text(r) -> str:
+    """One power row's advice in words (runs are an upper bound: identical runs repeat)."""
+    if r.limit == "decided" or r.runs_needed != r.runs_needed:
+        return str(r.limit)
+    minutes = f", ~{r.minutes_needed:.0f} min" if r.minutes_needed == r.minutes_needed else ""
+    return (f"{r.limit}: {int(r.seed_sets_needed)} seed sets, {int(r.nulls_needed)} null "
+            f"replicates (+{int(r.runs_needed):,} runs{minutes})")
 
 
 def power_advice(path: Path):
-    """The power table a study's report wrote (None if there is none)."""
+    """The power table a study's report wrote (None if there is none or it predates the
+    current columns)."""
     import pandas as pd
 
-    if not path.exists():
+    if not path.is_file():
         return None
-    cols = ["comparison", "metric", "rule", "excess", "effect", "seed_sets_used",
-            "seed_sets_needed", "verdict"]
+    cols = ["comparison", "metric", "rule", "excess", "verdict", "limit", "seed_sets_needed",
+            "nulls_needed", "runs_needed", "minutes_needed"]
     table = pd.read_csv(path)
     return table[cols] if set(cols) <= set(table.columns) else None
+
+
+@app.command()
+def calibrate(
+    study_dir: Annotated[Path, typer.Argument(help="A study folder written by `popnavshift run`.")
+                         ] = Path("study"),
+    by_comparison: Annotated[bool, typer.Option(
+        "--by-comparison", help="One block per comparison (matched, all pairs) besides the "
+        "pooled rows.")] = False,
+    fresh: Annotated[bool, typer.Option(
+        help="Recompute from the study's tables even when its report has the calibration.")
+                     ] = False,
+) -> None:
+    """Print every verdict rule's false-positive rate on placebos drawn from the study's own
+    nulls, with a Clopper–Pearson 95% interval.
+
+    A placebo takes one null replicate as if it were the observed populations and the other
+    replicates as its null: no population effect, so every claim is false. A rule is within
+    its nominal level when its interval's lower end is at or below it. Example:
+    `popnavshift calibrate study`.
+    """
+    from ..engine.store import check_study_folder
+
+    check_study_folder(study_dir)
+    cal = _calibration(study_dir, fresh)
+    if cal is None or cal.empty:
+        console.print(f"{say(study_dir)} ran no null replicates: nothing to calibrate (a study "
+                      "needs a `null_design` part, as the paper study has).", highlight=False)
+        raise typer.Exit(1)
+    scopes = sorted(set(cal["comparison"]) - {"all"}) + ["all"] if by_comparison else ["all"]
+    for scope in scopes:
+        t = Table("test (rule)", "claim", "claims / placebos", "rate [95% CI]", "nominal: within",
+                  title=f"placebos: {'all comparisons' if scope == 'all' else scope}")
+        for r in cal[cal["comparison"] == scope].itertuples(index=False):
+            rate = ("–" if r.placebos == 0 else
+                    f"{100 * r.rate:.1f}% [{100 * r.cp_low:.1f}, {100 * r.cp_high:.1f}]")
+            within = ("[green]yes[/]" if r.within in (True, "True") else "[red]NO[/]"
+                      if r.within in (False, "False") else "–")
+            verdict = (f"{100 * r.nominal:.1f}%: {within}" if r.kind == "false positive"
+                       else r.kind)
+            t.add_row(f"{say(r.test)} ({say(r.rule)})", say(r.claim), f"{r.claims}/{r.placebos}",
+                      rate, verdict)
+        console.print(t)
+    fp = cal[(cal["comparison"] == "all") & (cal["kind"] == "false positive")]
+    bad = fp[fp["within"].astype(str) == "False"]
+    checked = fp[fp["placebos"] > 0]
+    if bad.empty:
+        console.print(f"[green]every verdict rule is within its nominal level[/] "
+                      f"({len(checked)} rules checked on placebos).", highlight=False)
+    else:
+        console.print("[red]outside its nominal level[/]: "
+                      + "; ".join(f"{say(r.test)}: {say(r.claim)}" for r in bad.itertuples()),
+                      highlight=False)
+    unchecked = sorted(set(CHECKABLE) - set(checked["test"]))
+    if unchecked:
+        console.print("no placebo could make a claim for: " + ", ".join(unchecked)
+                      + " (too few null replicates; the exact permutation test needs 20, and "
+                      "is exact by construction).", highlight=False)
+
+
+CHECKABLE = ("prediction t", "exact permutation")
+
+
+def _calibration(study_dir: Path, fresh: bool):
+    """The report's calibration table when the report is newer than the runs, else computed
+    from the study's tables (the same code the report runs)."""
+    import pandas as pd
+
+    csv = study_dir / "report" / "tables" / "evidence_calibration.csv"
+    runs = study_dir / "runs.parquet"
+    if not fresh and csv.is_file() and csv.stat().st_mtime >= runs.stat().st_mtime:
+        return pd.read_csv(csv)
+    from ..analysis.study_evidence import evidence_tables
+    from ..engine.folder import read_study_folder
+
+    with console.status("running the placebos on the study's nulls…"):
+        tables, _ = evidence_tables(read_study_folder(study_dir))
+    return tables.get("evidence_calibration")
 
 
 @app.command()

@@ -13,15 +13,18 @@ evaluated controller against each baseline:
   baseline is significant under both populations with opposite signs, beside the
   raw (tie-tolerance) count — descriptive: over hundreds of comparisons, noise alone
   makes a few;
-* **crossovers**: per (cell, baseline, metric), the Gail–Simon test of a qualitative
-  interaction across the populations, Benjamini–Hochberg-adjusted over the card's
-  whole table — the test the verdict rests on;
+* **crossovers**: per (cell, baseline, metric), the paired intersection–union test of a
+  qualitative interaction across the populations (valid for populations that share
+  episodes and personas), Benjamini–Hochberg-adjusted over the card's whole table — the
+  test the verdict rests on — with the crossover size each could detect;
 * **safety**: the share of its runs ending in a pedestrian collision, a world
   collision or a controller error, against a threshold;
 * **verdict**: ``fails every run`` > ``unsafe`` > ``population-sensitive`` (a
   crossover survives multiplicity control) > ``robust in this study`` (none, with at
-  least half of its orderings decided) > ``inconclusive`` (too few decided: the seed
-  sets that would decide the median undecided ordering are given).
+  least half of its orderings decided and tests that would see a crossover of
+  ``CROSSOVER_OF_INTEREST`` with 80 % power) > ``inconclusive`` (no crossover detected
+  with that power, or too few decided: the seed sets that would decide the median
+  undecided ordering are given).
 """
 
 from __future__ import annotations
@@ -36,7 +39,14 @@ from scipy import stats
 from ..analysis.delay import cell_metrics, paired_delays
 from ..analysis.evidence import controller_ranks
 from ..analysis.resample import build_design, episode_weights, resampled_metrics
-from ..analysis.significance import ALPHA, LEVEL, bh, crossover_tests, orderings
+from ..analysis.significance import (
+    ALPHA,
+    LEVEL,
+    bh,
+    crossover_tests,
+    detectable_crossover,
+    orderings,
+)
 from ..populations.build import population_order
 
 VERDICT_METRICS: tuple[str, ...] = ("robot_time", "mean_delay", "cvar90")
@@ -44,6 +54,9 @@ SAFETY_OUTCOMES: tuple[str, ...] = ("pedestrian_collision", "world_collision",
                                     "controller_error")
 SAFETY_THRESHOLD = 0.05  # share of the controller's runs
 DECIDED_SHARE = 0.5  # orderings that must be significant before "robust" can be said
+#: The largest crossover (s, ± under two populations in one cell) the tests must be able to see
+#: with 80 % power before "no crossover" reads as robust.
+CROSSOVER_OF_INTEREST = 1.0
 
 
 @dataclass
@@ -113,6 +126,9 @@ def card_evidence(runs: pd.DataFrame, pedestrians: pd.DataFrame, controller: str
     tests = pd.concat(cross, ignore_index=True)
     tests["p_adj"] = bh(tests["p"].to_numpy(float))  # over the card's whole table
     tests["crossover"] = tests["p_adj"] <= ALPHA
+    tests["detectable"] = detectable_crossover(  # at the card's table size
+        tests["se"].to_numpy(float), tests["n_episodes"].to_numpy(float),
+        tests["n_populations"].to_numpy(float), int(tests["p"].notna().sum()))
     return Evidence(pd.concat(ranks, ignore_index=True), pd.concat(wins, ignore_index=True),
                     pd.DataFrame(revs), tests,
                     float(np.ceil(need.median())) if len(need) else float("nan"))
@@ -132,6 +148,16 @@ def _reversal_counts(t: pd.DataFrame) -> dict[str, int]:
     out["orderings"] = int(t["sig"].notna().sum())
     out["decided"] = int((t["sig"].abs() == 1).sum())
     return out
+
+
+def crossover_power(tests: pd.DataFrame) -> dict:
+    """The crossover size the card's tests could see: per metric the median over cells of
+    ``detectable`` (80 % power at the card's table size), and the metric where it is
+    largest (what "no crossover" can least rule out)."""
+    by = tests.groupby("metric")["detectable"].median().dropna()
+    if by.empty:
+        return {"metric": "", "size": float("inf")}
+    return {"metric": str(by.idxmax()), "size": float(by.max())}
 
 
 def safety_lines(runs: pd.DataFrame, controller: str,
@@ -167,9 +193,9 @@ def verdict(runs: pd.DataFrame, controller: str, ev: Evidence, *, seed_sets: int
                        safety, ev.undecided_seed_sets)
     x = ev.crossovers
     found = x[x["crossover"]]
-    tests = (f"{len(found)} of {int(x['p'].notna().sum())} crossover tests (Gail–Simon, one per "
-             "cell, baseline and metric across the populations) survive Benjamini–Hochberg "
-             f"control at {ALPHA:g}")
+    tests = (f"{len(found)} of {int(x['p'].notna().sum())} crossover tests (one per cell, "
+             "baseline and metric across the populations; paired, valid for populations that "
+             f"share episodes and personas) survive Benjamini–Hochberg control at {ALPHA:g}")
     counts = f"{tests}; {counts}"
     if len(found):
         top = found.groupby(["baseline", "metric"]).size().sort_values(ascending=False)
@@ -178,9 +204,18 @@ def verdict(runs: pd.DataFrame, controller: str, ev: Evidence, *, seed_sets: int
                        f"Its ranking changes with the population beyond noise: {counts}. Most "
                        f"against {b} on {m.replace('_', ' ')} ({n} cells).", safety,
                        ev.undecided_seed_sets)
-    if decided >= DECIDED_SHARE:
-        return Verdict("robust in this study", f"No crossover beyond noise: {counts}.", safety,
+    power = crossover_power(x)
+    if decided >= DECIDED_SHARE and power["size"] <= CROSSOVER_OF_INTEREST:
+        return Verdict("robust in this study", f"No crossover beyond noise: {counts}; the "
+                       f"tests would have found a crossover of ±{power['size']:.2f} s on "
+                       f"{power['metric'].replace('_', ' ')} with 80% power.", safety,
                        ev.undecided_seed_sets)
+    if decided >= DECIDED_SHARE:
+        return Verdict("inconclusive", f"No crossover detected, but the tests had little power: "
+                       f"80% power only for a crossover of ±{power['size']:.2f} s on "
+                       f"{power['metric'].replace('_', ' ')} in a cell (median over cells; "
+                       f"{CROSSOVER_OF_INTEREST:g} s is the size that matters here). {counts}.",
+                       safety, ev.undecided_seed_sets)
     need = ev.undecided_seed_sets
     advice = (f" About {int(need)} episode seed sets per cell (now {seed_sets}) would decide the "
               "median undecided ordering: add `seeds:` to the study's main part."

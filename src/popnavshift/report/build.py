@@ -20,7 +20,8 @@ from ..analysis.study_evidence import evidence_tables
 from ..analysis.study_robustness import robustness_tables
 from ..engine.folder import main_grid, read_study_folder
 from ..io import write_atomic, write_text
-from .answer import with_null_rates, write_answer_figures
+from .answer import with_null_rates
+from .answer_figures import write_answer_figures
 from .figures import profile_figures, write_figures
 from .page import render_report
 from .replays import write_replays

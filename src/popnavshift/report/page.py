@@ -16,7 +16,8 @@ from jinja2 import Environment, PackageLoader
 
 from ..analysis.study import Analysis
 from ..engine.folder import StudyFolder
-from .answer import answer_section, ranks_section, replicates_section, surviving_section
+from .answer import answer_section, ranks_section
+from .evidence_sections import calibration_section, replicates_section
 from .robustness import robustness_sections
 from .sections import (
     change_section,
@@ -57,7 +58,8 @@ def render_report(study: StudyFolder, a: Analysis, figs: dict[str, Path], out: P
     """The HTML page (a string) of analysis ``a``; ``figs`` maps figure names to PNG paths."""
     sections = [
         answer_section(a.tables, a.missing, figs, out), ranks_section(a.tables),
-        surviving_section(a.tables), replicates_section(a.tables, a.missing, figs, out),
+        replicates_section(a.tables, a.missing, figs, out),
+        calibration_section(a.tables),
         populations_section(study, a.populations, figs, out), checks_section(a), summary_section(a),
         reversals_section(a, figs, out), noise_section(a), outcomes_section(a),
         change_section(a, figs, out), sensitivity_section(a, figs, out),

@@ -16,6 +16,8 @@ from ..analysis import MATCHED, METRICS
 from ..analysis import paper_reference as paper
 from ..analysis.study import Analysis
 from ..analysis.summary import controller_order
+from ..analysis.surviving import findings_list
+from ..analysis.verdicts import ABOVE
 from ..populations.build import population_order
 from .blocks import Cell, Section, figure, fmt, para, pct, table
 from .figures import METRIC_LABELS, change_rows, controller_label, pop_label, tau_matrix
@@ -63,14 +65,21 @@ def _finding_numbers(statement: str, numbers: dict[str, Any]) -> str:
 
 
 def summary_section(a: Analysis) -> Section:
-    s = Section("summary", "Which of the paper's findings hold on this run",
+    s = Section("summary", "The paper's findings on this study: which hold, and which beyond noise",
                 missing="" if a.findings else a.missing.get("findings", "nothing to check"))
     if not a.findings:
         return s
     held = sum(f.holds for f in a.findings)
+    judged = findings_list(a.tables["findings"], a.tables.get("evidence_findings"),
+                           a.tables.get("evidence_burden")).set_index("statement")
+    tested = judged[judged["judged_by"] != "point estimate only"]
     s.blocks.append(para(f"{held} of the {len(a.findings)} qualitative findings of the paper "
-                         "(§V) that could be checked hold on this run. Each line is computed from "
-                         "this study's tables; the numbers are ours."))
+                         "(§V) that could be checked hold on this run's point estimates; "
+                         f"{int((tested['survives'] == True).sum())} of the {len(tested)} that "  # noqa: E712
+                         "can be judged beyond noise survive it (their 90% paired-bootstrap "
+                         "interval agrees, or, for the reversal findings, their excess over the "
+                         "null is above 0). Each line is computed from this study's tables; the "
+                         "numbers are ours."))
     if a.cells is not None:
         n_cells, n_pops = a.cells["cell"].nunique(), a.cells["population"].nunique()
         if n_cells < paper.N_CELLS or n_pops < paper.N_POPULATIONS:
@@ -83,8 +92,17 @@ def summary_section(a: Analysis) -> Section:
         s.blocks.append(para(a.missing["findings"].capitalize() + ".", "note"))
     s.blocks.append({"kind": "findings", "entries": [
         {"holds": f.holds, "statement": words(f.statement)[:1].upper() + words(f.statement)[1:],
-         "numbers": _finding_numbers(f.statement, f.numbers)} for f in a.findings]})
+         "numbers": _finding_numbers(f.statement, f.numbers),
+         "beyond": _beyond(judged.loc[f.statement])} for f in a.findings]})
     return s
+
+
+def _beyond(j: pd.Series) -> str:
+    """Whether a finding survives the noise, and on what."""
+    if j["judged_by"] == "point estimate only":
+        return "Beyond noise: not judged (point estimate only)."
+    word = {True: "survives", False: "does not survive"}.get(j["survives"], "undecided")
+    return f"Beyond noise, judged by {j['judged_by']}: {word} — {j['evidence']}."
 
 
 def _rate_row(t: pd.DataFrame, metric: str, scopes: tuple[str, ...]) -> list[Any]:
@@ -112,6 +130,9 @@ def reversals_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
     cols = ["Metric"] + ["Ours", "95% CI", "Reversals / comparable", "Paper"] * 2
     groups = [("", 1), ("All cells", 4), ("Completed cells", 4)]
     pops = a.cells["population"].nunique() if a.cells is not None else 0
+    variants = int(a.cells["n_runs"].median()) if a.cells is not None else 0
+    design = (f"main grid, {variants} variants per cell (the paper's design; the answer's "
+              "rates pool more seed sets where the study ran them)")
     for comp, title in (("all_pairs", f"All {pops * (pops - 1) // 2} population pairs"),
                         ("matched", "Matched time-pressure intervention (" + " vs ".join(MATCHED)
                          + ", same personas)")):
@@ -120,7 +141,7 @@ def reversals_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
             s.blocks.append(para(f"{title}: {a.missing.get('matched', 'not available')}.", "note"))
             continue
         rows = [_rate_row(sel, m, ("all", "completed")) for m in METRICS]
-        s.blocks.append(table(cols, rows, caption=title, csv="tables/reversals.csv",
+        s.blocks.append(table(cols, rows, caption=f"{title} — {design}", csv="tables/reversals.csv",
                               groups=groups))
     if "reversal_rates" in figs:
         s.blocks.append(figure(figs["reversal_rates"], out, "Reversal rates with 95% intervals; "
@@ -134,12 +155,12 @@ def descriptive_note(head: pd.DataFrame | None, power: pd.DataFrame | None) -> s
         return ""
     raw = power[power["rule"] == "raw"]
     within = [c for c, g in raw.groupby("comparison", sort=False)
-              if not (g["verdict"] == "beats the null").any()]
+              if not (g["verdict"] == ABOVE).any()]
     if not within:
         return ""
     words = {"matched": "the matched intervention", "all_pairs": "the population pairs"}
     which = " and ".join(words.get(c, c) for c in within)
-    return (f"Descriptive: for {which}, no raw rate below beats its null at the same design "
+    return (f"Descriptive: for {which}, no raw rate below is above its null at the same design "
             "(see 'The answer'): these rates reproduce the paper's statistic, and most of "
             "them are what noise alone produces.")
 

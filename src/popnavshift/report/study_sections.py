@@ -9,9 +9,12 @@ import json
 from pathlib import Path
 from typing import Any
 
+import pandas as pd
+
 from ..analysis.study import Analysis
 from ..engine.folder import StudyFolder
 from ..populations.build import population_order
+from ..populations.nulls import parse_null
 from .blocks import Cell, Section, figure, fmt, para, pct, table
 from .figures import controller_label, pop_label
 
@@ -23,15 +26,34 @@ def populations_section(study: StudyFolder, analysed: list[str], figs: dict[str,
     if pops is not None:
         a = pops[pops["mapping"] == "A"] if "mapping" in pops else pops
         n = a.groupby("population")["persona_id"].nunique()
-        order, used = population_order(n.index), set(analysed)
-        s.blocks.append(table(["Population", "Members", "In the analysed runs"],
-                              [[pop_label(p), int(n[p]), "yes" if p in used else "no"]
-                               for p in order], caption="Cohort sizes"))
+        nulls = {p: parse_null(p) for p in n.index}
+        order, used = population_order([p for p in n.index if nulls[p] is None]), set(analysed)
+        rows: list[list[Any]] = [[pop_label(p), int(n[p]), "yes" if p in used else "no"]
+                                 for p in order]
+        rows += null_rows(n, nulls)
+        s.blocks.append(table(["Population", "Members", "In the analysed runs"], rows,
+                              caption="Cohort sizes (null replicates: one line per null design)"))
     caps = {"fig3a_profiles": "(a) Median position of each motion parameter within its range, "
             "per population.", "fig3b_matched_shift": "(b) The matched personas before and "
             "after time pressure := Deadline."}
     s.blocks += [figure(figs[k], out, c) for k, c in caps.items() if k in figs]
     return s
+
+
+def null_rows(sizes: pd.Series, nulls: dict) -> list[list[str]]:
+    """One line per null design among the populations (swap permutations, size-matched
+    subsets): how many replicates and populations, and the members of each."""
+    rows = []
+    for kind, words in (("swap", "swap permutations of the matched pair (2 arms each)"),
+                        ("sized", "size-matched random subsets of mixed (one per cohort)")):
+        names = [p for p, x in nulls.items() if x is not None and x.kind == kind]
+        if not names:
+            continue
+        k = len({nulls[p].replicate for p in names})
+        lo, hi = int(sizes[names].min()), int(sizes[names].max())
+        rows.append([f"null: {k} {words}, {len(names)} populations",
+                     f"{lo}" if lo == hi else f"{lo}–{hi}", "in the headline tests"])
+    return rows
 
 
 def checks_section(a: Analysis) -> Section:

@@ -1,0 +1,146 @@
+"""Calibration: each verdict rule's false-positive rate, measured on the study's own nulls.
+
+A *placebo* takes one null replicate as if it were the observed population pairs and
+the study's other replicates as its null (same episodes, slots, controllers and
+design; P − 1 replicates). Its truth is known — no population effect — so every claim a
+rule makes on a placebo is a false positive. Per rule and claim:
+
+* **prediction t** (raw rule): claims an effect (above or below the null; nominal 5 %),
+  claims *above the null* (2.5 %); and, on the placebo shifted up by 5 pp — a true excess
+  of exactly 5 pp — claims *no excess ≥ 5 pp* (2.5 %). Its power is read off placebos
+  shifted by 5 and 10 pp;
+* **exact permutation** (significant rule): claims *above the null* (5 %; exact by
+  construction — with P − 1 replicates it can reach 0.05 only when P ≥ 20, so a study
+  with fewer has no placebo for it, and says so);
+* **crossover test**: any crossover surviving the table's control between the two arms
+  of a swap permutation (5 %). Size-matched subsets are no placebo for it — one random
+  persona and hundreds may truly order controllers differently — so their crossovers
+  are reported as a diagnostic;
+* diagnostic, no verdict rests on it: the **episode-only interval** of the excess excludes
+  0 (nominal 5 % if it were a test against the null; it is not: it holds the replicates
+  fixed).
+
+Each rate has its exact (Clopper–Pearson) 95 % interval; a rule is *within* its nominal
+level when the interval's lower end is at or below it. Placebos of one study share
+replicates and episodes, so they are not independent draws: the synthetic studies of the
+test suite, with many independent replicates, are the stricter check.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pandas as pd
+
+from .verdicts import (
+    ABOVE,
+    ALPHA,
+    BELOW,
+    MIN_EFFECT,
+    MIN_NULLS_T,
+    SMALL,
+    clopper_pearson,
+    min_nulls_permutation,
+    permutation_test,
+    prediction_test,
+)
+
+#: (test, rule, claim, kind, nominal, shift of the placebo's rate, claim made?)
+Check = tuple[str, str, str, str, float, float, Callable[[dict], bool]]
+CHECKS: tuple[Check, ...] = (
+    ("prediction t", "raw", "an effect (above or below)", "false positive", ALPHA,
+     0.0, lambda d: d["verdict"] in (ABOVE, BELOW)),
+    ("prediction t", "raw", "above the null", "false positive", ALPHA / 2, 0.0,
+     lambda d: d["verdict"] == ABOVE),
+    ("prediction t", "raw", "no excess ≥ 5 pp, at +5 pp", "false positive", ALPHA / 2,
+     MIN_EFFECT, lambda d: d["verdict"] == SMALL),
+    ("prediction t", "raw", "above the null, at +5 pp", "power", np.nan, MIN_EFFECT,
+     lambda d: d["verdict"] == ABOVE),
+    ("prediction t", "raw", "above the null, at +10 pp", "power", np.nan,
+     2 * MIN_EFFECT, lambda d: d["verdict"] == ABOVE),
+    ("exact permutation", "sig", "above the null", "false positive", ALPHA, 0.0,
+     lambda d: d["verdict"] == ABOVE),
+)
+CROSSOVER_CLAIM = "a crossover between swap arms"
+#: Size-matched subsets of different sizes (one persona against hundreds) may truly order
+#: controllers differently: a crossover there is not known to be false, only reported.
+CROSSOVER_SIZED = "a crossover among sized subsets"
+TESTS = {"prediction t": prediction_test, "exact permutation": permutation_test}
+#: The fewest other replicates with which a placebo can make a claim under each test: a
+#: placebo that cannot claim says nothing about the rule's false-positive rate.
+MIN_OTHERS = {"prediction t": MIN_NULLS_T, "exact permutation": min_nulls_permutation()}
+COLUMNS = ["comparison", "test", "rule", "claim", "kind", "nominal", "placebos", "claims",
+           "rate", "cp_low", "cp_high", "within"]
+
+
+def placebos(null_rates: pd.DataFrame) -> pd.DataFrame:
+    """Every (check, comparison, metric, replicate) placebo of ``null_rates`` (one row per
+    null replicate and rule: ``comparison, metric, rule, replicate, rate``) with whether the
+    check's claim was made (``claim_made``)."""
+    rows = []
+    for (comp, metric, rule), g in null_rates.groupby(["comparison", "metric", "rule"],
+                                                      sort=False):
+        rates = g["rate"].to_numpy(float)
+        for test, check_rule, claim, _, _, shift, made in CHECKS:
+            if check_rule != rule or len(rates) - 1 < MIN_OTHERS[test]:
+                continue  # with so few other replicates the rule can never claim anything
+            for j in range(len(rates)):
+                if not np.isfinite(rates[j]):
+                    continue
+                d = TESTS[test](rates[j] + shift, np.delete(rates, j))
+                rows.append({"comparison": comp, "metric": metric, "test": test, "rule": rule,
+                             "claim": claim, "replicate": int(g["replicate"].iloc[j]),
+                             "claim_made": bool(made(d))})
+    return pd.DataFrame(rows)
+
+
+def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame | None = None
+                      ) -> pd.DataFrame:
+    """Per comparison (and ``all`` pooled) and check: placebos, claims, the claim rate with
+    its Clopper–Pearson 95 % interval, the nominal level and ``within`` (the interval's lower
+    end at or below it; NaN for power rows). Rows follow ``CHECKS``, then the crossover test
+    and the episode-only interval (a diagnostic)."""
+    if null_rates is None or null_rates.empty:
+        return pd.DataFrame(columns=COLUMNS)
+    p = placebos(null_rates)
+    frames = [] if p.empty else [p]
+    if placebo_crossovers is not None and not placebo_crossovers.empty:
+        swap = placebo_crossovers["comparison"] == "matched"
+        frames.append(placebo_crossovers.assign(
+            test="crossover test", rule="—",
+            claim=np.where(swap, CROSSOVER_CLAIM, CROSSOVER_SIZED),
+            claim_made=placebo_crossovers["any"].astype(bool)))
+    if "episode_excludes_zero" in null_rates:
+        e = null_rates[null_rates["episode_excludes_zero"].notna()]
+        frames.append(e.assign(test="episode-only interval",
+                               claim="an effect (excludes 0)",
+                               claim_made=e["episode_excludes_zero"].astype(bool)))
+    allp = pd.concat(frames, ignore_index=True)
+    order = {(c[0], c[2]): i for i, c in enumerate(CHECKS)}
+    kinds = {(c[0], c[2]): (c[3], c[4]) for c in CHECKS}
+    rows = []
+    for comp in [*sorted(allp["comparison"].unique()), "all"]:
+        sub = allp if comp == "all" else allp[allp["comparison"] == comp]
+        for (test, rule, claim), g in sub.groupby(["test", "rule", "claim"], sort=False):
+            kind, nominal = kinds.get((test, claim), ("false positive", ALPHA))
+            if test.startswith("episode") or claim == CROSSOVER_SIZED:
+                kind = "diagnostic"
+            k, n = int(g["claim_made"].sum()), len(g)
+            low, high = clopper_pearson(k, n)
+            rows.append({"comparison": comp, "test": test, "rule": rule, "claim": claim,
+                         "kind": kind, "nominal": nominal, "placebos": n, "claims": k,
+                         "rate": k / n if n else np.nan, "cp_low": low, "cp_high": high,
+                         "within": (low <= nominal) if kind == "false positive" else np.nan,
+                         "_order": (order.get((test, claim), 90) if test in TESTS else
+                                    98 if test.startswith("episode") else 95)})
+    have = {(r["test"], r["claim"]) for r in rows if r["comparison"] == "all"}
+    for test, rule, claim, kind, nominal, _, _ in CHECKS:  # a rule no placebo could test
+        if (test, claim) not in have:
+            rows.append({"comparison": "all", "test": test, "rule": rule, "claim": claim,
+                         "kind": kind, "nominal": nominal, "placebos": 0, "claims": 0,
+                         "rate": np.nan, "cp_low": np.nan, "cp_high": np.nan, "within": np.nan,
+                         "_order": order[(test, claim)]})
+    out = pd.DataFrame(rows).assign(_pooled=lambda t: t["comparison"] == "all")
+    out = out.sort_values(["_pooled", "comparison", "_order", "rule"], kind="stable")
+    return out.reset_index(drop=True)[COLUMNS]

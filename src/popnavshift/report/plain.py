@@ -1,0 +1,194 @@
+"""The report's first paragraph: the answer in plain words, generated from the verdicts.
+
+"Do controller rankings change with the pedestrian population beyond noise?" is
+answered per aspect — pedestrian burden (mean delay, worst-decile delay, CVaR-90) and
+robot time — from the raw-rule verdicts of the headline (:mod:`popnavshift.analysis.verdicts`),
+for the matched time-pressure shift and for the population pairs, each with its design;
+then what orderings decided under both populations do, what the overall controller
+order does across populations, and the false-positive rate the deciding test showed on
+the study's own placebos. Nothing here is written by hand: every word that carries a
+result comes from a table, so a study with other results reads otherwise.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ..analysis.verdicts import ABOVE, BELOW, SMALL, UNDECIDED, min_nulls_permutation
+from .blocks import pct
+from .figures import controller_label, pop_label
+
+BURDEN = ("mean_delay", "worst_decile", "cvar90")
+ROBOT = ("robot_time",)
+LABELS = {"robot_time": "robot time", "mean_delay": "mean delay",
+          "worst_decile": "worst-decile delay", "cvar90": "CVaR-90 delay"}
+NULL_WORDS = {"swap": "swap permutations of their profiles",
+              "sized": "size-matched random subsets of mixed"}
+
+
+def pp(x: float, signed: bool = True) -> str:
+    """A rate difference in percentage points: ``+8.6 pp``."""
+    return "–" if not np.isfinite(x) else f"{100 * x:{'+' if signed else ''}.1f} pp"
+
+
+def interval(r: Any) -> str:
+    """``+9.0 pp [+3.6, +14.5]``: an excess and its deciding 95 % interval."""
+    low, high = (pp(r[k]).removesuffix(" pp") for k in ("ci_low", "ci_high"))
+    return f"{pp(r['excess'])} [{low}, {high}]"
+
+
+def join(words: list[str]) -> str:
+    return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " and " + words[-1]
+
+
+SHORT = {"matched": "under the matched shift", "all_pairs": "across the population pairs"}
+
+
+def design_phrase(r: Any, n_pairs: int, n_populations: int) -> str:
+    """Where a comparison's rates come from: its design and its null."""
+    design = (f"{int(r['variants_per_cell'])} variants per cell, against {int(r['n_null'])} "
+              f"{NULL_WORDS.get(str(r['null']), 'null replicates')}")
+    if r["comparison"] == "matched":
+        return f"under the matched time-pressure shift (same personas; {design})"
+    return f"across the {n_pairs} pairs of the {n_populations} populations ({design})"
+
+
+def _clauses(rows: pd.DataFrame) -> list[str]:
+    """The metrics of one comparison grouped by verdict, each with its excess and interval."""
+    words = {ABOVE: "reverse more often than under the null",
+             SMALL: "show no excess of 5 pp or more over the null",
+             BELOW: "reverse less often than under the null",
+             UNDECIDED: "are undecided"}
+    out = []
+    for verdict, phrase in words.items():
+        sel = rows[rows["verdict"] == verdict]
+        if sel.empty:
+            continue
+        names = [LABELS[m] for m in sel["metric"]]
+        figures = "; ".join(f"{LABELS[r.metric]} {interval(r._asdict())}"
+                            for r in sel.itertuples()) if len(sel) > 1 else interval(
+            sel.iloc[0])
+        out.append(f"{join(names)} orderings {phrase} ({figures})")
+    return out
+
+
+def _answer_word(rows: pd.DataFrame) -> str:
+    if (rows["verdict"] == ABOVE).any():
+        return "yes"
+    if rows["verdict"].isin([SMALL, BELOW]).all():
+        return "no"
+    return "not decided"
+
+
+def aspect_sentences(head: pd.DataFrame, metrics: tuple[str, ...], lead: str, n_pairs: int,
+                     n_populations: int, *, designs: bool = True) -> dict[str, str] | None:
+    """One aspect's answer (yes / no / not decided) and, per comparison, its clauses;
+    ``designs`` spells out each comparison's design (the first aspect does, the next
+    refer back to it)."""
+    raw = head[(head["rule"] == "raw") & head["metric"].isin(metrics) & (head["n_null"] > 0)]
+    if raw.empty:
+        return None
+    parts = []
+    for comp in ("matched", "all_pairs"):
+        rows = raw[raw["comparison"] == comp]
+        if rows.empty:
+            continue
+        where = (design_phrase(rows.iloc[0], n_pairs, n_populations) if designs
+                 else SHORT.get(comp, comp))
+        parts.append(where[0].upper() + where[1:] + ", " + "; ".join(_clauses(rows)) + ".")
+    return {"lead": f"{lead}: {_answer_word(raw)}.", "text": " ".join(parts)}
+
+
+def decided_sentence(head: pd.DataFrame) -> dict[str, str] | None:
+    """What orderings significant under both populations do (the significant rule)."""
+    sig = head[(head["rule"] == "sig") & (head["n_null"] > 0)]
+    if sig.empty:
+        return None
+    parts = []
+    for comp, rows in sig.groupby("comparison", sort=False):
+        name = "matched shift" if comp == "matched" else "pairs"
+        above = [LABELS[m] for m in rows.loc[rows["verdict"] == ABOVE, "metric"]]
+        counts = (f"{rows['reversals'].min()}–{rows['reversals'].max()}"
+                  if rows["reversals"].nunique() > 1 else f"{rows['reversals'].iloc[0]}")
+        total = (f"{rows['comparable'].min():,}–{rows['comparable'].max():,}"
+                 if rows["comparable"].nunique() > 1 else f"{rows['comparable'].iloc[0]:,}")
+        test = ("; the exact permutation test puts " + join(above) + " above the null"
+                if above else "; the exact permutation test shows none above the null"
+                if (rows["n_null"] >= min_nulls_permutation()).all() else
+                f" (descriptive: {int(rows['n_null'].min())} null replicates cannot bring the "
+                "exact test to p ≤ 0.05)")
+        parts.append(f"{name}, {counts} reversals per metric among {total}{test}")
+    low, high = 100 * sig["observed"].min(), 100 * sig["observed"].max()
+    return {"lead": f"Decided orderings flip in {low:.0f}–{high:.0f}% of comparisons.",
+            "text": "Of the orderings significant under both populations (90% paired "
+                    "interval excludes 0): " + "; ".join(parts) + "."}
+
+
+def order_sentence(ranks: pd.DataFrame | None) -> dict[str, str] | None:
+    """Whether the controllers' overall (grid-mean) order is the same in every population."""
+    if ranks is None or ranks.empty:
+        return None
+    r = ranks[ranks["comparison"] == "all_pairs"] if (ranks["comparison"] == "all_pairs").any() \
+        else ranks
+    same, differ = [], []
+    n_pops = r["population"].nunique()
+    for metric in [m for m in (*BURDEN, *ROBOT) if m in set(r["metric"])]:
+        sub = r[r["metric"] == metric]
+        orders = sub.sort_values("rank").groupby("population", sort=False)["controller"].agg(
+            tuple)
+        modal = orders.value_counts().index[0]
+        text = " < ".join(controller_label(c) for c in modal)
+        if orders.nunique() == 1:
+            same.append(f"{LABELS[metric]} ({text})")
+        else:
+            other = [pop_label(p) for p in orders.index[orders != modal]]
+            differ.append(f"{LABELS[metric]} ({text} in {n_pops - len(other)} of {n_pops}; "
+                          f"another order in {join(other)})")
+    if not differ:
+        return {"lead": "The overall order does not change.",
+                "text": f"The controllers' grid-mean order (lowest first) is the same in all "
+                        f"{n_pops} populations for " + join(same) + "."}
+    text = ("The controllers' grid-mean order (lowest first; point ranks, whose intervals are in "
+            "the rank table) changes for " + join(differ))
+    if same:
+        text += " and is the same in every population for " + join(same)
+    return {"lead": "The overall order changes for some metrics.", "text": text + "."}
+
+
+def calibration_sentence(calibration: pd.DataFrame | None) -> dict[str, str] | None:
+    """The deciding test's false-positive rate on the study's own placebos."""
+    if calibration is None or calibration.empty:
+        return None
+    c = calibration[(calibration["comparison"] == "all") & (calibration["test"] == "prediction t")
+                    & (calibration["claim"].str.startswith("an effect"))]
+    if c.empty:
+        return None
+    r = c.iloc[0]
+    return {"lead": "How these are decided.",
+            "text": "Each yes or no rests on the raw reversal rate (the paper's tie rule) against "
+                    "null replicates run on the same episodes, by a prediction t on the spread "
+                    f"between replicates; on {int(r['placebos'])} placebos drawn from this "
+                    f"study's own nulls it claimed an effect in {pct(r['rate'])} "
+                    f"[95% {pct(r['cp_low'])}, {pct(r['cp_high'])}] at a nominal "
+                    f"{pct(r['nominal'])} (calibration section). Intervals are 95%."}
+
+
+def answer_sentences(tables: dict[str, pd.DataFrame]
+                     ) -> tuple[list[dict[str, str]], list[dict[str, str]]]:
+    """The first paragraph — the question's answer per aspect and what the overall order
+    does — and the second — what the answer rests on (decided orderings, calibration)."""
+    head = tables.get("evidence_headline")
+    if head is None or head.empty:
+        return [], []
+    ranks = tables.get("evidence_ranks")
+    n_pops = int(ranks.loc[ranks["comparison"] == "all_pairs", "population"].nunique()) \
+        if ranks is not None and not ranks.empty else 0
+    pairs = n_pops * (n_pops - 1) // 2
+    answer = [aspect_sentences(head, BURDEN, "Pedestrian burden", pairs, n_pops),
+              aspect_sentences(head, ROBOT, "Robot time", pairs, n_pops, designs=False),
+              order_sentence(ranks)]
+    support = [decided_sentence(head), calibration_sentence(tables.get("evidence_calibration"))]
+    return [s for s in answer if s], [s for s in support if s]

@@ -1,0 +1,213 @@
+"""Verdicts against null replicates, their calibration and the power advice, on data where
+the truth is known: synthetic rates (thousands of independent designs) and synthetic
+studies run through the real analysis (:mod:`synth_study`)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats
+
+from popnavshift.analysis.calibrate import calibration_table, placebos
+from popnavshift.analysis.power import Costs, advise_prediction, design_advice, sd_exponent
+from popnavshift.analysis.verdicts import (
+    ABOVE,
+    BELOW,
+    DESCRIPTIVE,
+    NOT_SHOWN,
+    SMALL,
+    UNDECIDED,
+    clopper_pearson,
+    decide,
+    min_nulls_permutation,
+    permutation_p,
+    permutation_test,
+    prediction_test,
+)
+
+N_DESIGNS = 4000
+MC = 3  # Monte-Carlo standard errors allowed above a nominal rate
+
+
+def rates(rng: np.random.Generator, shape, *, comparisons: int = 600, base: float = 0.2,
+          spread: float = 0.02) -> np.ndarray:
+    """Raw-rule-like reversal rates: reversals / comparisons with a design-level rate that
+    varies between replicates (overdispersed binomial), shape (…)."""
+    p = np.clip(rng.normal(base, spread, shape), 0.01, 0.99)
+    return rng.binomial(comparisons, p) / comparisons
+
+
+def sig_rates(rng: np.random.Generator, shape, *, comparisons: int = 40) -> np.ndarray:
+    """Significant-rule-like rates: a few reversals among few decided comparisons (mostly 0,
+    skewed) — where a t on the replicates' spread is not calibrated."""
+    lam = rng.gamma(0.5, 0.6, shape)
+    return np.minimum(rng.poisson(lam), comparisons) / comparisons
+
+
+def claim_rate(fn, observed: np.ndarray, nulls: np.ndarray, verdicts) -> float:
+    return float(np.mean([fn(o, n)["verdict"] in verdicts
+                          for o, n in zip(observed, nulls, strict=True)]))
+
+
+def bound(nominal: float, n: int = N_DESIGNS) -> float:
+    return nominal + MC * np.sqrt(nominal * (1 - nominal) / n)
+
+
+# --- the rules on synthetic rates ------------------------------------------------------------
+
+
+@pytest.mark.parametrize("n_null", [4, 9, 19])
+def test_the_prediction_t_claims_an_effect_at_its_nominal_rate_under_the_null(n_null):
+    rng = np.random.default_rng(n_null)
+    draws = rates(rng, (N_DESIGNS, n_null + 1))
+    observed, nulls = draws[:, 0], draws[:, 1:]
+    assert claim_rate(prediction_test, observed, nulls, (ABOVE, BELOW)) <= bound(0.05)
+    assert claim_rate(prediction_test, observed, nulls, (ABOVE,)) <= bound(0.025)
+    # and it is not conservative to uselessness: close to nominal
+    assert claim_rate(prediction_test, observed, nulls, (ABOVE, BELOW)) > 0.03
+
+
+def test_the_prediction_t_rules_out_5_pp_wrongly_at_most_at_its_nominal_rate():
+    rng = np.random.default_rng(7)
+    draws = rates(rng, (N_DESIGNS, 10))
+    observed = draws[:, 0] + 0.05  # the truth: an excess of exactly 5 pp
+    assert claim_rate(prediction_test, observed, draws[:, 1:], (SMALL,)) <= bound(0.025)
+
+
+def test_the_prediction_t_finds_an_injected_excess():
+    rng = np.random.default_rng(8)
+    draws = rates(rng, (1000, 10))
+    sd = float(draws[:, 1:].std(ddof=1, axis=1).mean())
+    found = claim_rate(prediction_test, draws[:, 0] + 5 * sd, draws[:, 1:], (ABOVE,))
+    assert found > 0.8
+    tight = rates(rng, (1000, 10), spread=0.005)  # replicate SD ≈ 1.7 pp
+    small = claim_rate(prediction_test, tight[:, 0], tight[:, 1:], (SMALL,))
+    assert small > 0.5  # no excess: the data usually rule out a 5-pp one
+
+
+def test_on_skewed_small_counts_the_t_over_rejects_and_the_permutation_test_does_not():
+    rng = np.random.default_rng(9)
+    draws = sig_rates(rng, (N_DESIGNS, 20))
+    observed, nulls = draws[:, 0], draws[:, 1:]
+    t_rate = claim_rate(prediction_test, observed, nulls, (ABOVE, BELOW))
+    perm = claim_rate(permutation_test, observed, nulls, (ABOVE,))
+    assert perm <= bound(0.05)
+    assert t_rate > perm  # why the significant rule rests on the exact test
+
+
+def test_the_permutation_test_needs_19_replicates_to_decide():
+    assert min_nulls_permutation(0.05) == 19
+    assert permutation_test(0.9, np.zeros(9))["verdict"] == DESCRIPTIVE
+    assert permutation_test(0.9, np.zeros(19))["verdict"] == ABOVE
+    assert permutation_test(0.0, np.zeros(19))["verdict"] == NOT_SHOWN
+    assert permutation_p(0.3, np.array([0.1, 0.3, 0.5, 0.2])) == pytest.approx(3 / 5)
+
+
+def test_prediction_interval_by_hand():
+    null = np.array([0.20, 0.22, 0.18, 0.21, 0.19])
+    d = prediction_test(0.30, null)
+    s = null.std(ddof=1) * np.sqrt(1 + 1 / 5)
+    half = stats.t.ppf(0.975, 4) * s
+    assert d["excess"] == pytest.approx(0.10)
+    assert d["ci_low"] == pytest.approx(0.10 - half) and d["ci_high"] == pytest.approx(0.10 + half)
+    assert d["t"] == pytest.approx(0.10 / s) and d["df"] == 4
+    assert d["verdict"] == ABOVE
+    assert prediction_test(0.2, null[:2])["verdict"] == UNDECIDED  # 2 replicates: no verdict
+    assert prediction_test(0.2, np.full(5, 0.2))["verdict"] == UNDECIDED  # no spread
+
+
+def test_decide_takes_the_verdict_of_the_rules_test():
+    null = np.linspace(0.1, 0.2, 9)
+    assert decide(0.5, null, "raw")["test"] == "prediction t"
+    assert decide(0.5, null, "raw")["verdict"] == ABOVE
+    sig = decide(0.5, null, "sig")
+    assert sig["test"] == "permutation" and sig["verdict"] == DESCRIPTIVE  # 9 < 19
+
+
+def test_clopper_pearson_matches_scipy():
+    low, high = clopper_pearson(3, 92)
+    ref = stats.binomtest(3, 92).proportion_ci(method="exact")
+    assert (low, high) == pytest.approx((ref.low, ref.high))
+    assert clopper_pearson(0, 10)[0] == 0.0 and clopper_pearson(10, 10)[1] == 1.0
+
+
+# --- calibration on placebos -----------------------------------------------------------------
+
+
+def null_table(draws: np.ndarray, comparison: str = "matched", rule: str = "raw"
+               ) -> pd.DataFrame:
+    """A null-rates table from (designs, P) replicate rates, one metric per design."""
+    return pd.DataFrame([{"comparison": comparison, "metric": f"m{i}", "rule": rule,
+                          "replicate": k + 1, "rate": x}
+                         for i, row in enumerate(draws) for k, x in enumerate(row)])
+
+
+def test_calibration_of_pure_noise_is_within_nominal_and_of_a_bad_rule_is_not():
+    rng = np.random.default_rng(11)
+    nulls = null_table(rates(rng, (300, 10)))
+    cal = calibration_table(pd.concat([nulls, null_table(sig_rates(rng, (100, 20)), rule="sig")]))
+    fp = cal[(cal["comparison"] == "all") & (cal["kind"] == "false positive")]
+    assert set(fp["test"]) == {"prediction t", "exact permutation"}
+    assert fp["within"].all(), fp
+    t_any = fp[fp["claim"].str.startswith("an effect")].iloc[0]
+    assert t_any["placebos"] == 3000
+    # the episode-only interval is not a verdict rule; a rule that always claims is caught
+    always = placebos(nulls).assign(claim_made=True)
+    assert always["claim_made"].mean() == 1.0
+    power = cal[(cal["comparison"] == "all") & (cal["kind"] == "power")]
+    assert (power["rate"].diff().dropna() >= 0).all()  # +10 pp is found more often than +5
+
+
+def test_placebos_leave_one_replicate_out():
+    nulls = null_table(np.array([[0.1, 0.2, 0.3, 0.9]]))
+    p = placebos(nulls)
+    above = p[(p["claim"] == "above the null")].set_index("replicate")["claim_made"]
+    # replicate 4 (0.9) against the other three is far above them; the others are not
+    assert above.to_dict() == {1: False, 2: False, 3: False, 4: True}
+
+
+# --- the power advice -------------------------------------------------------------------------
+
+
+def test_the_sd_exponent_is_measured_not_assumed():
+    s = np.array([1, 2, 3, 4])
+    half = pd.DataFrame({"seed_sets": s, "null_sd": 0.03 / np.sqrt(s)})
+    flat = pd.DataFrame({"seed_sets": s, "null_sd": np.full(4, 0.03)})
+    assert sd_exponent(half) == pytest.approx(0.5)
+    assert sd_exponent(flat) == pytest.approx(0.0)
+    assert np.isnan(sd_exponent(half.iloc[:1]))
+
+
+def test_advice_names_what_limits_a_verdict_and_what_it_costs():
+    costs = Costs(per_population=1000.0, observed=2, per_replicate=2, runs_per_second=500.0)
+    # a floor (b = 0): more seed sets cannot help; null replicates alone can
+    adv = advise_prediction(0.06, 0.02, 4, 5, 0.0, costs)
+    assert adv["limit"] == "null replicates" and adv["seed_sets_needed"] == 4
+    assert adv["nulls_needed"] > 5
+    assert adv["runs_needed"] == costs.runs(4, 5, 4, adv["nulls_needed"])
+    assert adv["minutes_needed"] == pytest.approx(adv["runs_needed"] / 500 / 60)
+    # an excess far below the null's spread, with a floor: nothing reachable
+    assert advise_prediction(0.02, 0.2, 4, 9, 0.0, costs)["limit"] == "nothing reachable"
+    # the spread falls with seed sets: more seed sets decide it
+    assert "seed sets" in advise_prediction(0.02, 0.03, 1, 19, 0.5, costs)["limit"]
+    # one seed set and no curve: it says it cannot tell, never names a number it cannot back
+    one = advise_prediction(0.02, 0.2, 1, 9, float("nan"), costs)
+    assert "one seed set" in one["limit"] and "seed_sets_needed" not in one
+
+
+def test_decided_rows_get_no_advice():
+    head = pd.DataFrame([
+        {"metric": "mean_delay", "rule": "raw", "verdict": ABOVE, "test": "prediction t",
+         "excess": 0.08, "null_sd": 0.02, "n_null": 9, "seed_sets": 4, "n_null_above": 0},
+        {"metric": "cvar90", "rule": "raw", "verdict": UNDECIDED, "test": "prediction t",
+         "excess": 0.04, "null_sd": 0.02, "n_null": 9, "seed_sets": 4, "n_null_above": 0},
+        {"metric": "cvar90", "rule": "sig", "verdict": DESCRIPTIVE, "test": "permutation",
+         "excess": 0.04, "null_sd": 0.02, "n_null": 9, "seed_sets": 4, "n_null_above": 2}])
+    curve = pd.DataFrame({"metric": "cvar90", "rule": "raw", "seed_sets": [1, 2, 3, 4],
+                          "null_sd": 0.04 / np.sqrt([1, 2, 3, 4])})
+    out = design_advice(head, curve, Costs(1000.0, 2, 2, 500.0))
+    assert out.loc[0, "limit"] == "decided" and np.isnan(out.loc[0, "runs_needed"])
+    assert out.loc[1, "sd_exponent"] == pytest.approx(0.5)
+    assert out.loc[1, "runs_needed"] > 0
+    assert out.loc[2, "limit"].startswith("nothing reachable")  # a null is above it
