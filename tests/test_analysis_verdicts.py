@@ -188,7 +188,7 @@ def test_advice_names_what_limits_a_verdict_and_what_it_costs():
     assert adv["runs_needed"] == costs.runs(4, 5, 4, adv["nulls_needed"])
     assert adv["minutes_needed"] == pytest.approx(adv["runs_needed"] / 500 / 60)
     # an excess far below the null's spread, with a floor: nothing reachable
-    assert advise_prediction(0.02, 0.2, 4, 9, 0.0, costs)["limit"] == "nothing reachable"
+    assert advise_prediction(0.02, 0.2, 4, 9, 0.0, costs)["limit"].startswith("nothing reachable")
     # the spread falls with seed sets: more seed sets decide it
     assert "seed sets" in advise_prediction(0.02, 0.03, 1, 19, 0.5, costs)["limit"]
     # one seed set and no curve: it says it cannot tell, never names a number it cannot back

@@ -93,9 +93,11 @@ def advise_prediction(excess: float, sd: float, s0: int, p0: int, b: float, cost
                     best = (cost, s1, p1)
                 break  # more replicates at this S only cost more
     if best is None:
-        why = ("nothing reachable" if np.isfinite(b) else
-               "nothing reachable with null replicates alone; the study ran one seed set, so "
-               "it cannot say how more would help (run ≥ 2)")
+        ratio = f"the decisive margin is {target / sd:.1f} null SDs"
+        why = (f"nothing reachable within {MAX_SEED_SETS} seed sets and {MAX_NULLS} null "
+               f"replicates ({ratio}; the null's SD falls as S^−{b:.2f})" if np.isfinite(b) else
+               f"nothing reachable with null replicates alone ({ratio}); with one seed set the "
+               "study cannot say how more would help (run ≥ 2)")
         return {"limit": why}
     cost, s1, p1 = best
     limit = ("null replicates" if s1 == s0 else "seed sets" if p1 == p0 else

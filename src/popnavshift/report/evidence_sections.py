@@ -16,13 +16,12 @@ from .plain import LABELS, pp
 
 def _advice(r) -> str:
     if r.limit == "decided":
-        return "decided"
+        return "–"
     if not np.isfinite(r.runs_needed):
         return r.limit
-    minutes = (f", about {r.minutes_needed:.0f} min at this study's speed"
-               if np.isfinite(r.minutes_needed) else "")
-    return (f"{r.limit}: {int(r.seed_sets_needed)} seed sets and {int(r.nulls_needed)} null "
-            f"replicates (+{int(r.runs_needed):,} runs at most{minutes})")
+    minutes = f", ~{r.minutes_needed:.0f} min" if np.isfinite(r.minutes_needed) else ""
+    return (f"{r.limit}: {int(r.seed_sets_needed)} seed sets, {int(r.nulls_needed)} nulls "
+            f"(+{int(r.runs_needed):,} runs at most{minutes})")
 
 
 def power_block(power: pd.DataFrame) -> dict:
@@ -34,11 +33,11 @@ def power_block(power: pd.DataFrame) -> dict:
                  else f" (from {r.sd_exponent_from})"),
              f"{int(r.seed_sets)} / {int(r.n_null)}", Cell(r.verdict, "strong"), _advice(r)]
             for r in power.itertuples()]
-    return table(["Comparison", "Metric", "Rule", "Excess", "Null SD", "SD ∝ S^−b: b",
-                  "Seed sets / nulls now", "Verdict", "What would decide it (80% power)"], rows,
-                 caption="Power: what limits each verdict, from the study's own replicate curve "
-                 "(b is fitted, not assumed; b = 0 means more seed sets do not shrink the null's "
-                 "spread) and null replicates", csv="tables/evidence_power.csv")
+    return table(["Comparison", "Metric", "Rule", "Excess", "Null SD", "b", "Seed sets / nulls",
+                  "Verdict", "What would decide it (80% power)"], rows,
+                 caption="Power: what would decide each verdict. b: the null's SD falls as "
+                 "(seed sets)^−b, fitted on the study's own replicate curve (0: more seed sets "
+                 "do not help)", csv="tables/evidence_power.csv")
 
 
 def replicates_section(tables: dict[str, pd.DataFrame], missing: dict[str, str],
