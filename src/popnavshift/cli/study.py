@@ -88,7 +88,8 @@ def advice_text(r) -> str:
     if r.limit == "decided" or r.runs_needed != r.runs_needed:
         return str(r.limit)
     minutes = f", ~{r.minutes_needed:.0f} min" if r.minutes_needed == r.minutes_needed else ""
-    return (f"{r.limit}: {int(r.seed_sets_needed)} seed sets, {int(r.nulls_needed)} null "
+    sets = int(r.seed_sets_needed)
+    return (f"{r.limit}: {sets} seed set{'s' if sets != 1 else ''}, {int(r.nulls_needed)} null "
             f"replicates (+{int(r.runs_needed):,} runs{minutes})")
 
 

@@ -20,7 +20,8 @@ def _advice(r) -> str:
     if not np.isfinite(r.runs_needed):
         return r.limit
     minutes = f", ~{r.minutes_needed:.0f} min" if np.isfinite(r.minutes_needed) else ""
-    return (f"{r.limit}: {int(r.seed_sets_needed)} seed sets, {int(r.nulls_needed)} nulls "
+    sets = int(r.seed_sets_needed)
+    return (f"{r.limit}: {sets} seed set{'s' if sets != 1 else ''}, {int(r.nulls_needed)} nulls "
             f"(+{int(r.runs_needed):,} runs at most{minutes})")
 
 

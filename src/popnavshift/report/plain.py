@@ -168,12 +168,17 @@ def crossover_sentence(crossovers: pd.DataFrame | None) -> dict[str, str] | None
     parts = []
     for comp, g in x.groupby("comparison", sort=False):
         found, tests = int(g["crossover"].sum()), int(g["p"].notna().sum())
+        if tests == 0:
+            parts.append(f"{SHORT.get(comp, comp)}, no test is possible (one episode per "
+                         "cell has no spread to judge a sign by)")
+            continue
         size = float(g["detectable"].median())
         parts.append(f"{SHORT.get(comp, comp)}, {found} of {tests} (cell, controller pair) "
                      f"tests find a mean-delay crossover, with 80% power only for one of "
                      f"±{size:.2g} s")
     total = int(x["crossover"].sum())
-    return {"lead": ("No crossover is detected cell by cell." if total == 0 else
+    return {"lead": ("Cell by cell, nothing can be tested." if x["p"].notna().sum() == 0 else
+                     "No crossover is detected cell by cell." if total == 0 else
                      f"{total} mean-delay crossover{'s' if total != 1 else ''} cell by cell."),
             "text": "A crossover is one population under which a controller pair's ordering is "
                     "significantly one way and another under which it is the other (a paired "
@@ -210,8 +215,14 @@ def answer_sentences(tables: dict[str, pd.DataFrame]
         if ranks is not None and not ranks.empty else 0
     pairs = n_pops * (n_pops - 1) // 2
     answer = [aspect_sentences(head, BURDEN, "Pedestrian burden", pairs, n_pops),
-              aspect_sentences(head, ROBOT, "Robot time", pairs, n_pops, designs=False),
-              order_sentence(ranks)]
+              aspect_sentences(head, ROBOT, "Robot time", pairs, n_pops, designs=False)]
+    if not any(answer):
+        answer = [{"lead": "Not decided.",
+                   "text": "This study ran no null replicates, so no reversal rate can be set "
+                           "against what noise alone produces at the same design: its rates are "
+                           "descriptive. The paper study runs them (`null_design` parts: "
+                           "`popnavshift run`)."}]
+    answer.append(order_sentence(ranks))
     support = [decided_sentence(head), crossover_sentence(tables.get("evidence_crossovers")),
                calibration_sentence(tables.get("evidence_calibration"))]
     return [s for s in answer if s], [s for s in support if s]
