@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from popnavshift.analysis.calibrate import calibration_table, placebos
+from popnavshift.analysis.calibrate import calibration_table, family_placebos, placebos, status
 from popnavshift.analysis.power import Costs, advise_prediction, design_advice, sd_exponent
 from popnavshift.analysis.verdicts import (
     ABOVE,
@@ -211,3 +211,19 @@ def test_decided_rows_get_no_advice():
     assert out.loc[1, "sd_exponent"] == pytest.approx(0.5)
     assert out.loc[1, "runs_needed"] > 0
     assert out.loc[2, "limit"].startswith("nothing reachable")  # a null is above it
+
+
+def test_the_headline_table_as_a_whole_claims_at_most_its_nominal_rate():
+    """The report decides its m rates together (each at 5%/m): on placebo tables of pure
+    noise, any claim of the whole table is false, and happens at most 5% of the time."""
+    rng = np.random.default_rng(12)
+    tables = [null_table(rates(rng, (8, 10))).assign(comparison=f"c{i}") for i in range(150)]
+    nulls = pd.concat(tables, ignore_index=True)
+    claims = []
+    for _, g in nulls.groupby("comparison"):
+        fam = family_placebos(g.assign(comparison="one"), 8)
+        claims += list(fam.loc[fam["claim"].str.startswith("any rate"), "claim_made"])
+    assert len(claims) == 1500
+    assert np.mean(claims) <= bound(0.05, len(claims))
+    assert status(0.0, 0.08, 0.05) == "within" and status(0.06, 0.2, 0.05) == "above nominal"
+    assert status(0.01, 0.2, 0.05) == "too few placebos to tell"

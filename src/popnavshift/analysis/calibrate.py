@@ -20,10 +20,23 @@ rule makes on a placebo is a false positive. Per rule and claim:
   0 (nominal 5 % if it were a test against the null; it is not: it holds the replicates
   fixed).
 
-Each rate has its exact (Clopper–Pearson) 95 % interval; a rule is *within* its nominal
-level when the interval's lower end is at or below it. Placebos of one study share
-replicates and episodes, so they are not independent draws: the synthetic studies of the
-test suite, with many independent replicates, are the stricter check.
+* **the headline table as a whole**, as the report decides it (every raw rate at α/m,
+  Bonferroni over its m rates): placebo j takes replicate j of every comparison as the
+  observed; any rate called above or below the null is a false claim (nominal 5 %), and
+  on the placebo shifted by +5 pp any *no excess ≥ 5 pp* (2.5 %). Its placebos are the
+  replicate indices, so there are few: it is the check of what the report's first
+  paragraph claims together.
+
+Each rate has its exact (Clopper–Pearson) 95 % interval. ``within``: its lower end is at
+or below the nominal level (the data are consistent with a calibrated rule); ``status``:
+*within* when, besides, its upper end is at most twice the nominal level, *above nominal*
+when its lower end is above it, and *too few placebos to tell* otherwise. Placebos of one
+study share replicates and episodes (and the pooled rows pool correlated metrics), so they
+are not independent draws, and leave-one-out placebos are exchangeable by construction:
+they check the tests' distributional assumptions, not whether the observed populations
+are fair draws from the null (that is the null's construction, docs/analysis.md §7). The
+synthetic studies of the test suite, with many independent replicates, are the stricter
+check.
 """
 
 from __future__ import annotations
@@ -71,7 +84,9 @@ TESTS = {"prediction t": prediction_test, "exact permutation": permutation_test}
 #: placebo that cannot claim says nothing about the rule's false-positive rate.
 MIN_OTHERS = {"prediction t": MIN_NULLS_T, "exact permutation": min_nulls_permutation()}
 COLUMNS = ["comparison", "test", "rule", "claim", "kind", "nominal", "placebos", "claims",
-           "rate", "cp_low", "cp_high", "within"]
+           "rate", "cp_low", "cp_high", "within", "status"]
+FAMILY_EFFECT = "any rate above or below the null"
+FAMILY_SMALL = "any 'no excess ≥ 5 pp', at +5 pp"
 
 
 def placebos(null_rates: pd.DataFrame) -> pd.DataFrame:
@@ -95,16 +110,63 @@ def placebos(null_rates: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame | None = None
-                      ) -> pd.DataFrame:
+def family_placebos(null_rates: pd.DataFrame, family: int, *, alpha: float = ALPHA
+                    ) -> pd.DataFrame:
+    """The headline table as the report decides it, on placebos: replicate j of every
+    comparison taken as the observed (against that comparison's other replicates), every
+    raw rate of the table decided at ``alpha``/``family`` (:func:`.nulls.family_verdicts`).
+    One row per j with whether any rate was called above or below the null (false: the
+    truth is no effect), and, on the placebo shifted up by 5 pp, whether any was called
+    *no excess ≥ 5 pp* (false: the truth is +5 pp)."""
+    raw = null_rates[null_rates["rule"] == "raw"]
+    groups = {k: g.set_index("replicate")["rate"] for k, g in
+              raw.groupby(["comparison", "metric"], sort=False)}
+    if not groups or family < 1:
+        return pd.DataFrame()
+    common = sorted(set.intersection(*(set(g.index) for g in groups.values())))
+    rows = []
+    for j in common:
+        effect = small = False
+        for g in groups.values():
+            rest = g.drop(index=j).to_numpy(float)
+            if len(rest) < MIN_NULLS_T or not np.isfinite(g[j]):
+                continue
+            effect |= prediction_test(g[j], rest, alpha=alpha / family)["verdict"] in (ABOVE,
+                                                                                       BELOW)
+            small |= prediction_test(g[j] + MIN_EFFECT, rest,
+                                     alpha=alpha / family)["verdict"] == SMALL
+        rows += [{"comparison": "table", "test": "headline table", "rule": "raw",
+                  "claim": FAMILY_EFFECT, "replicate": j, "claim_made": effect},
+                 {"comparison": "table", "test": "headline table", "rule": "raw",
+                  "claim": FAMILY_SMALL, "replicate": j, "claim_made": small}]
+    return pd.DataFrame(rows)
+
+
+def status(low: float, high: float, nominal: float) -> str:
+    """What the placebos say of a rule at ``nominal``: *within* (its interval reaches down to
+    the nominal level and rules out twice it), *above nominal* (the whole interval above),
+    or *too few placebos to tell* (neither)."""
+    if not np.isfinite(low):
+        return "no placebos"
+    if low > nominal:
+        return "above nominal"
+    return "within" if high <= 2 * nominal else "too few placebos to tell"
+
+
+def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame | None = None,
+                      *, family: int = 0) -> pd.DataFrame:
     """Per comparison (and ``all`` pooled) and check: placebos, claims, the claim rate with
-    its Clopper–Pearson 95 % interval, the nominal level and ``within`` (the interval's lower
-    end at or below it; NaN for power rows). Rows follow ``CHECKS``, then the crossover test
-    and the episode-only interval (a diagnostic)."""
+    its Clopper–Pearson 95 % interval, the nominal level, ``within`` (the interval's lower
+    end at or below it; NaN for power rows) and ``status`` (:func:`status`). Rows follow
+    ``CHECKS``, then the headline table as a whole (with ``family`` raw rates, each decided
+    at α/``family``), the crossover test and the episode-only interval (a diagnostic)."""
     if null_rates is None or null_rates.empty:
         return pd.DataFrame(columns=COLUMNS)
     p = placebos(null_rates)
     frames = [] if p.empty else [p]
+    fam = family_placebos(null_rates, family)
+    if not fam.empty:
+        frames.append(fam)
     if placebo_crossovers is not None and not placebo_crossovers.empty:
         swap = placebo_crossovers["comparison"] == "matched"
         frames.append(placebo_crossovers.assign(
@@ -121,9 +183,12 @@ def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame
     kinds = {(c[0], c[2]): (c[3], c[4]) for c in CHECKS}
     rows = []
     for comp in [*sorted(allp["comparison"].unique()), "all"]:
-        sub = allp if comp == "all" else allp[allp["comparison"] == comp]
+        sub = (allp[allp["comparison"] != "table"] if comp == "all"
+               else allp[allp["comparison"] == comp])
         for (test, rule, claim), g in sub.groupby(["test", "rule", "claim"], sort=False):
             kind, nominal = kinds.get((test, claim), ("false positive", ALPHA))
+            if claim == FAMILY_SMALL:
+                nominal = ALPHA / 2
             if test.startswith("episode") or claim == CROSSOVER_SIZED:
                 kind = "diagnostic"
             k, n = int(g["claim_made"].sum()), len(g)
@@ -132,7 +197,10 @@ def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame
                          "kind": kind, "nominal": nominal, "placebos": n, "claims": k,
                          "rate": k / n if n else np.nan, "cp_low": low, "cp_high": high,
                          "within": (low <= nominal) if kind == "false positive" else np.nan,
+                         "status": status(low, high, nominal) if kind == "false positive"
+                         else kind,
                          "_order": (order.get((test, claim), 90) if test in TESTS else
+                                    -1 if test == "headline table" else
                                     98 if test.startswith("episode") else 95)})
     have = {(r["test"], r["claim"]) for r in rows if r["comparison"] == "all"}
     for test, rule, claim, kind, nominal, _, _ in CHECKS:  # a rule no placebo could test
@@ -140,7 +208,8 @@ def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame
             rows.append({"comparison": "all", "test": test, "rule": rule, "claim": claim,
                          "kind": kind, "nominal": nominal, "placebos": 0, "claims": 0,
                          "rate": np.nan, "cp_low": np.nan, "cp_high": np.nan, "within": np.nan,
+                         "status": "no placebos" if kind == "false positive" else kind,
                          "_order": order[(test, claim)]})
-    out = pd.DataFrame(rows).assign(_pooled=lambda t: t["comparison"] == "all")
+    out = pd.DataFrame(rows).assign(_pooled=lambda t: t["comparison"].isin(["all", "table"]))
     out = out.sort_values(["_pooled", "comparison", "_order", "rule"], kind="stable")
     return out.reset_index(drop=True)[COLUMNS]

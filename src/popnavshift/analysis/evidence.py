@@ -55,7 +55,7 @@ class Tested:
 def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
                      designs: dict[str, tuple[list, list]], observed: Sequence[str], *,
                      rng: np.random.Generator, n_boot: int = N_BOOT, level: float = LEVEL,
-                     alpha: float = ALPHA, method: str = "bh",
+                     alpha: float = ALPHA, method: str = "holm",
                      metrics: Sequence[str] = EVIDENCE_METRICS,
                      ci_level: float = CI_LEVEL) -> Tested:
     """Every comparison design of ``designs`` tested on ``runs`` (see the module doc).
@@ -104,7 +104,7 @@ def _populations(pairs: Sequence[tuple[str, str]]) -> list[str]:
 
 
 def placebo_crossovers(o: Orderings, nulls: Sequence[Sequence[tuple[str, str]]], *,
-                       method: str = "bh", alpha: float = ALPHA) -> pd.DataFrame:
+                       method: str = "holm", alpha: float = ALPHA) -> pd.DataFrame:
     """The crossover test run on each null replicate's populations as if they were the
     observed (a placebo: none of them differs from another but by chance), one row per
     replicate: ``tests``, ``crossovers`` (surviving the table's control) and ``any``."""

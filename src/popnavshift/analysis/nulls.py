@@ -62,13 +62,17 @@ def swap_pairs(k: int) -> list[tuple[str, str]]:
     return [(swap_name(k, "a"), swap_name(k, "b"))]
 
 
-def sized_pairs(observed_pairs: Sequence[tuple[str, str]], k: int) -> list[tuple[str, str]]:
+def sized_pairs(observed_pairs: Sequence[tuple[str, str]], k: int, *,
+                swap: bool = False) -> list[tuple[str, str]]:
     """The null of each observed pair: both populations replaced by replicate ``k`` of
-    their size-matched subsets (``mixed`` by itself)."""
+    their size-matched subsets (``mixed`` by itself). With ``swap``, the matched pair's null
+    is swap permutation ``k`` instead: its arms hold the same personas in every slot, as the
+    matched pair does, where two independent subsets would not (and would reverse more)."""
     def sub(p: str) -> str:
         return p if p == SIZED_SOURCE else sized_name(p, k)
 
-    return [(sub(a), sub(b)) for a, b in observed_pairs]
+    return [swap_pairs(k)[0] if swap and {a, b} == set(MATCHED) else (sub(a), sub(b))
+            for a, b in observed_pairs]
 
 
 def null_test(o: Orderings, observed: Sequence[tuple[str, str]],
@@ -172,13 +176,15 @@ def centred_interval(estimate: float, samples: np.ndarray, level: float,
 
 def burden_beyond_time(headline: pd.DataFrame, null_rates: pd.DataFrame,
                        boot_excess: dict[tuple[str, str, str], np.ndarray], *,
-                       burden: str = "mean_delay", ci_level: float = CI_LEVEL) -> pd.DataFrame:
+                       burden: str = "mean_delay", ci_level: float = CI_LEVEL,
+                       alpha: float = 1 - CI_LEVEL) -> pd.DataFrame:
     """"Burden reverses more than robot time", tested against the null.
 
     Per (comparison, rule): the difference d = rate(burden) − rate(robot time),
     observed and per null replicate; its excess over the null (observed d − mean
-    null d) decided like a rate (:func:`.verdicts.decide` on the replicates' d), with the
-    episode-only interval beside it (excess_b(burden) − excess_b(time)). Every null also
+    null d) decided like a rate (:func:`.verdicts.decide` on the replicates' d, at
+    ``alpha``: the caller's share of its table's level), with the episode-only interval
+    beside it (excess_b(burden) − excess_b(time)). Every null also
     reverses burden more often than robot time, so only an excess of d says the
     population does.
     """
@@ -193,7 +199,7 @@ def burden_beyond_time(headline: pd.DataFrame, null_rates: pd.DataFrame,
         d_null = (wide[burden] - wide["robot_time"]).to_numpy(float) if len(wide) else np.array([])
         d_null = d_null[np.isfinite(d_null)]
         boot = (boot_excess[(comp, burden, rule)] - boot_excess[(comp, "robot_time", rule)])
-        test = decide(d_obs, d_null, rule, alpha=1 - ci_level)
+        test = decide(d_obs, d_null, rule, alpha=alpha)
         n_eps = float(h.at[burden, "n_episodes"]) if "n_episodes" in h else np.inf
         low, high = (centred_interval(test["excess"], boot, ci_level, n_eps) if d_null.size
                      else (np.nan, np.nan))
@@ -205,6 +211,32 @@ def burden_beyond_time(headline: pd.DataFrame, null_rates: pd.DataFrame,
     return pd.DataFrame(rows)
 
 
+def family_verdicts(headline: pd.DataFrame, null_rates: pd.DataFrame, *,
+                    alpha: float = 1 - CI_LEVEL) -> pd.DataFrame:
+    """The headline's verdicts with multiplicity control over its table: per rule, every row
+    with null replicates is one test of a family of m, decided at ``alpha``/m (Bonferroni),
+    so its interval is a simultaneous 1 − ``alpha`` interval and every claim of the table —
+    above, below, no excess ≥ 5 pp — holds together with probability ≥ 1 − ``alpha``.
+    Adds ``family`` (m), ``level`` (each interval's coverage) and ``p_adj`` (m·p, capped at
+    1, of the rule's test); the per-test p-values are kept."""
+    out = headline.reset_index(drop=True).copy()
+    key = ["comparison", "metric", "rule"]
+    rates = {k: g["rate"].to_numpy(float) for k, g in null_rates.groupby(key, sort=False)}
+    for rule, rows in out.groupby("rule", sort=False):
+        tested = rows[rows["n_null"] > 0]
+        m = max(len(tested), 1)
+        for i, r in tested.iterrows():
+            d = decide(float(r["observed"]), rates[(r["comparison"], r["metric"], rule)], rule,
+                       alpha=alpha / m)
+            for col in ("ci_low", "ci_high", "verdict"):
+                out.at[i, col] = d[col]
+        p = tested["p_t"] if rule == "raw" else tested["p_value"]
+        out.loc[tested.index, "p_adj"] = np.minimum(1.0, m * p.to_numpy(float))
+        out.loc[rows.index, "family"] = m
+        out.loc[rows.index, "level"] = 1 - alpha / m
+    return out
+
+
 def headline_designs(populations: Sequence[str],
                      observed_populations: Sequence[str]) -> dict[str, tuple[list, list]]:
     """The study's headline comparisons and their nulls: label → (observed pairs, one
@@ -212,7 +244,11 @@ def headline_designs(populations: Sequence[str],
 
     ``matched``: the matched pair against the swap permutations present;
     ``all_pairs``: every pair of ``observed_populations`` against the size-matched
-    replicates that cover them all (left out when it would be the matched pair alone).
+    replicates that cover them all (left out when it would be the matched pair alone); the
+    matched pair among them gets swap permutation k as its null where the study ran it.
+    Two approximations remain, both documented (docs/analysis.md §7): cohorts that share
+    personas get independent subsets, and ``homogeneous`` (the median profile, not a
+    member of mixed) gets one random member.
     """
     out: dict[str, tuple[list, list]] = {}
     if set(MATCHED) <= set(populations):
@@ -220,8 +256,12 @@ def headline_designs(populations: Sequence[str],
     obs = list(observed_populations)
     if len(obs) >= 2 and not (len(obs) == 2 and set(obs) == set(MATCHED) and out):
         pairs = population_pairs(obs)
-        out["all_pairs"] = (pairs, [sized_pairs(pairs, k)
-                                    for k in sized_replicates(populations, obs)])
+        reps = sized_replicates(populations, obs)
+        swaps = set(swap_replicates(populations))
+        swap = set(MATCHED) <= set(obs) and bool(swaps)
+        if swap:
+            reps = [k for k in reps if k in swaps]
+        out["all_pairs"] = (pairs, [sized_pairs(pairs, k, swap=swap) for k in reps])
     return out
 
 

@@ -12,13 +12,18 @@ decided with probability ``power`` once
     s(S′) · √(1 + 1/P′) · (t_{P′−1, 0.975} + z_power) ≤ max(|δ|, 5 pp − δ),
 
 the first term on the right deciding *above* or *below the null*, the second *no excess
-≥ 5 pp* (the same two-sided interval as the verdict). The cheapest (S′ ≥ S, P′ ≥ P) that
-meets it is advised, with its runs and minutes; when nothing within ``MAX_SEED_SETS`` and
-``MAX_NULLS`` meets it, or the study ran one seed set (the curve cannot say how s falls)
-and more replicates alone cannot, the advice says so instead of naming a number.
+≥ 5 pp* (the same two-sided interval as the verdict, at the level the headline's
+multiplicity control gives each verdict: t_{P′−1, 1−α/(2m)} for a table of m rates). The
+cheapest (S′ ≥ S, P′ ≥ P) that meets it is advised, with its runs and minutes; when
+nothing within ``MAX_SEED_SETS`` and ``MAX_NULLS`` meets it, or the study ran one seed set
+(the curve cannot say how s falls) and more replicates alone cannot, the advice says so
+instead of naming a number. Two assumptions are stated, not checked: the excess stays at
+its estimate (raw rates include near-ties that thin out with more episodes), and b, fitted
+on 2–4 nested points each from P replicates, is itself noisy.
 
-The significant rule rests on the exact permutation test: it needs P ≥ 19 to reach
-0.05 at all, and can decide only while the observed exceeds every replicate.
+The significant rule rests on the exact permutation test: it needs P ≥ 1/α − 1 to reach α
+at all (19 at 0.05; 159 at 0.05/8), and can decide only while the observed exceeds every
+replicate.
 """
 
 from __future__ import annotations
@@ -77,25 +82,30 @@ def half_scale(p: int, power: float = POWER, alpha: float = ALPHA) -> float:
 
 
 def advise_prediction(excess: float, sd: float, s0: int, p0: int, b: float, costs: Costs, *,
-                      power: float = POWER, min_effect: float = MIN_EFFECT) -> dict:
+                      power: float = POWER, min_effect: float = MIN_EFFECT,
+                      alpha: float = ALPHA) -> dict:
     """The cheapest (seed sets, null replicates) that decides a raw rate (module doc)."""
     target = max(abs(excess), min_effect - excess)
-    if not (np.isfinite(excess) and np.isfinite(sd) and sd > 0 and p0 >= 2):
+    if not (np.isfinite(excess) and np.isfinite(sd) and p0 >= 2):
         return {"limit": "cannot estimate (too few null replicates)"}
+    if sd == 0:
+        return {"limit": "cannot estimate (every null replicate has the same rate)"}
     s_range = range(s0, MAX_SEED_SETS + 1) if np.isfinite(b) else range(s0, s0 + 1)
     best = None
     for s1 in s_range:
         sd1 = sd * (s1 / s0) ** (-b) if np.isfinite(b) else sd
         for p1 in range(max(p0, 3), MAX_NULLS + 1):
-            if sd1 * half_scale(p1, power) <= target:
+            if sd1 * half_scale(p1, power, alpha) <= target:
                 cost = costs.runs(s0, p0, s1, p1)
                 if best is None or cost < best[0]:
                     best = (cost, s1, p1)
                 break  # more replicates at this S only cost more
     if best is None:
         ratio = f"the decisive margin is {target / sd:.1f} null SDs"
+        fall = (f"the null's SD falls as S^−{b:.2f}" if b >= 0.05 else
+                f"the null's SD does not fall with seed sets on this study's curve, b = {b:.2f}")
         why = (f"nothing reachable within {MAX_SEED_SETS} seed sets and {MAX_NULLS} null "
-               f"replicates ({ratio}; the null's SD falls as S^−{b:.2f})" if np.isfinite(b) else
+               f"replicates ({ratio}; {fall})" if np.isfinite(b) else
                f"nothing reachable with null replicates alone ({ratio}); with one seed set the "
                "study cannot say how more would help (run ≥ 2)")
         return {"limit": why}
@@ -106,10 +116,10 @@ def advise_prediction(excess: float, sd: float, s0: int, p0: int, b: float, cost
             "minutes_needed": cost / costs.runs_per_second / 60}
 
 
-def advise_permutation(row: pd.Series, costs: Costs, s0: int) -> dict:
-    """The exact permutation test needs 19 replicates to reach 0.05, and can decide only
-    while the observed rate is above every replicate."""
-    need = min_nulls_permutation()
+def advise_permutation(row: pd.Series, costs: Costs, s0: int, *, alpha: float = ALPHA) -> dict:
+    """The exact permutation test needs 1/``alpha`` − 1 replicates to reach ``alpha`` (19 at
+    0.05), and can decide only while the observed rate is above every replicate."""
+    need = min_nulls_permutation(alpha)
     p0 = int(row["n_null"])
     if int(row.get("n_null_above", 0)) > 0:
         return {"limit": "nothing reachable (a null replicate is at or above the observed)"}
@@ -121,9 +131,11 @@ def advise_permutation(row: pd.Series, costs: Costs, s0: int) -> dict:
 
 
 def design_advice(headline: pd.DataFrame, curve: pd.DataFrame | None, costs: Costs, *,
-                  power: float = POWER) -> pd.DataFrame:
+                  power: float = POWER, alpha: float = ALPHA) -> pd.DataFrame:
     """Per headline row (one comparison design): its verdict and, where undecided, what
-    limits it and the cheapest design that would decide it (module doc). Columns added:
+    limits it and the cheapest design that would decide it at ``alpha`` (the level each
+    verdict is decided at: the table's share, :func:`.nulls.family_verdicts`; module doc).
+    Columns added:
     ``limit``, ``sd_exponent``, ``seed_sets_needed``, ``nulls_needed``, ``runs_needed``,
     ``minutes_needed`` (NaN where nothing is advised)."""
     rows = []
@@ -135,10 +147,10 @@ def design_advice(headline: pd.DataFrame, curve: pd.DataFrame | None, costs: Cos
         if r["verdict"] in CLAIMS:
             adv = {"limit": "decided"}
         elif r["test"] == "permutation":
-            adv = advise_permutation(r, costs, s0)
+            adv = advise_permutation(r, costs, s0, alpha=alpha)
         else:
             adv = advise_prediction(float(r["excess"]), float(r["null_sd"]), s0,
-                                    int(r["n_null"]), b, costs, power=power)
+                                    int(r["n_null"]), b, costs, power=power, alpha=alpha)
         rows.append({"seed_sets_needed": np.nan, "nulls_needed": np.nan, "runs_needed": np.nan,
                      "minutes_needed": np.nan, **adv, "sd_exponent": b})
     return pd.concat([headline.reset_index(drop=True), pd.DataFrame(rows)], axis=1)

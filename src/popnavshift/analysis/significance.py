@@ -264,11 +264,11 @@ def pair_counts(o: Orderings, pairs: Sequence[tuple[str, str]]) -> PairCounts:
 
 def one_sided_p(diff: np.ndarray, se: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(p of D > 0, p of D < 0) per entry: t = D / (√(n/(n−1)) · SE) on n − 1 degrees of
-    freedom (the bootstrap SE's plug-in bias undone); NaN where n < 2 or D, SE are missing.
-    A zero SE with a non-zero D is an infinitely precise sign."""
+    freedom (the bootstrap SE's plug-in bias undone); NaN where n < 2, D or SE is missing,
+    or SE is 0 (every resample the same: no spread to judge a sign by)."""
     d, s = np.asarray(diff, float), np.asarray(se, float)
     n = np.broadcast_to(np.asarray(n, float), d.shape)
-    ok = np.isfinite(d) & np.isfinite(s) & (n >= 2)
+    ok = np.isfinite(d) & np.isfinite(s) & (s > 0) & (n >= 2)
     with np.errstate(divide="ignore", invalid="ignore"):
         scaled = s * np.sqrt(n / (n - 1))
         t = np.where(d == 0, 0.0, d / scaled)
@@ -301,13 +301,15 @@ def detectable_crossover(se: np.ndarray, n: np.ndarray, q: np.ndarray, m: int, *
     """The crossover the test of each row would find with probability ``power``: ±Y (metric
     units) under two of its q populations, Y returned per row (m rows, SE the median over its
     populations, n episodes). A single crossover among m rows survives the table's control
-    when its p ≤ α/m (Benjamini–Hochberg with one discovery is Bonferroni), so each side needs
+    when its p ≤ α/m (Holm with one discovery is Bonferroni), so each side needs
     its one-sided p ≤ α/(m q): per side the noncentrality λ with
-    P(t_{n−1}(λ) > t_{n−1, 1−α/(mq)}) = √power, and Y = λ · √(n/(n−1)) · SE. NaN where n < 2."""
+    P(t_{n−1}(λ) > t_{n−1, 1−α/(mq)}) = 1 − (1 − power)/2 (so both sides succeed together
+    with probability ≥ power, whatever their dependence), and Y = λ · √(n/(n−1)) · SE. NaN
+    where n < 2."""
     se, n, q = (np.asarray(x, float) for x in (se, n, q))
     out = np.full(se.shape, np.nan)
     ok = np.isfinite(se) & (n >= 2) & (q >= 2)
-    side = np.sqrt(power)
+    side = 1 - (1 - power) / 2  # both sides together ≥ power, whatever their dependence
     for nn, qq in {(a, b) for a, b in zip(n[ok], q[ok], strict=True)}:
         rows = ok & (n == nn) & (q == qq)
         df = nn - 1
@@ -343,10 +345,12 @@ def bh(p: np.ndarray) -> np.ndarray:
 ADJUST = {"holm": holm, "bh": bh}
 
 
-def crossover_tests(o: Orderings, populations: Sequence[str], *, method: str = "bh",
+def crossover_tests(o: Orderings, populations: Sequence[str], *, method: str = "holm",
                     alpha: float = ALPHA) -> pd.DataFrame:
     """The crossover test (:func:`crossover_p`) per (unit, controller pair) across
-    ``populations``, adjusted over the table's rows with ``method`` (``"holm"`` or ``"bh"``).
+    ``populations``, adjusted over the table's rows with ``method`` (``"holm"``, valid whatever
+    the dependence between rows, the default; or ``"bh"``, which assumes positive
+    dependence).
 
     Returns one row per (unit, controller pair): UNIT columns, ``ctrl_1, ctrl_2``,
     ``n_populations``, ``p``, ``p_adj``, ``crossover`` (p_adj ≤ ``alpha``), ``se`` (the

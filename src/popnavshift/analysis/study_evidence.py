@@ -34,11 +34,12 @@ from ..populations.nulls import parse_null
 from ..tables import NO_ROBOT
 from .calibrate import calibration_table
 from .evidence import complete_design, test_comparisons
-from .nulls import burden_beyond_time, design_populations, headline_designs
+from .nulls import burden_beyond_time, design_populations, family_verdicts, headline_designs
 from .power import Costs, design_advice
 from .replicates import replicability, replicate_curve, seed_sets
 from .significance import LEVEL
 from .surviving import surviving_findings
+from .verdicts import ALPHA
 
 PREFIX = "evidence_"
 
@@ -66,6 +67,8 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
     seed = int(study.manifest.get("seeds", {}).get("study", 0))
     frames: dict[str, list[pd.DataFrame]] = {}
     missing: dict[str, str] = {}
+    boot_excess: dict[tuple[str, str, str], np.ndarray] = {}
+    costs: dict[str, Costs] = {}
     for i, (label, (obs_pairs, nulls)) in enumerate(designs.items()):
         pops = design_populations(obs_pairs, nulls)
         r, p = complete_design(runs, peds, pops)
@@ -82,26 +85,16 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
         n_sets = int(seed_sets(r).nunique())
         head = tested.headline.assign(null="swap" if label == "matched" else "sized",
                                       seed_sets=n_sets, variants_per_cell=3 * n_sets)
-        burden = pd.concat([burden_beyond_time(head, tested.null_rates, tested.boot_excess,
-                                               burden=m) for m in ("mean_delay", "cvar90")],
-                           ignore_index=True)
-        add = {"headline": head, "null_rates": tested.null_rates, "burden": burden,
+        add = {"headline": head, "null_rates": tested.null_rates,
                "crossovers": tested.crossovers,
                "placebo_crossovers": tested.placebo_crossovers,
                "orderings": tested.orderings.assign(comparison=label),
                "ranks": tested.ranks.assign(comparison=label)}
         add.update(_replicates(r, p, one, obs_pops, tested.headline, label=label, seed=seed,
                                rng_seed=rng_seed, level=level, missing=missing))
+        boot_excess.update(tested.boot_excess)
         if head["n_null"].max() > 0:
-            # a comparison run on one seed set borrows how the null's spread falls with seed
-            # sets from another comparison of the study (same cells, metrics and rules)
-            curve, source = add.get("curve"), label
-            if curve is None and frames.get("curve"):
-                curve = frames["curve"][0]
-                source = str(curve["comparison"].iloc[0])
-            add["power"] = design_advice(head, curve,
-                                         design_costs(r, obs_pops, nulls, study.manifest)
-                                         ).assign(sd_exponent_from=source)
+            costs[label] = design_costs(r, obs_pops, nulls, study.manifest)
         else:
             missing[f"power_{label}"] = (f"the study ran no null of the {label} comparison "
                                          f"({'a swap' if label == 'matched' else 'a sized'} "
@@ -114,10 +107,43 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
         for k, v in add.items():
             frames.setdefault(k, []).append(v)
     tables = {PREFIX + k: pd.concat(v, ignore_index=True) for k, v in frames.items()}
-    if PREFIX + "null_rates" in tables:
-        tables[PREFIX + "calibration"] = calibration_table(
-            tables[PREFIX + "null_rates"], tables.get(PREFIX + "placebo_crossovers"))
+    if PREFIX + "headline" in tables:
+        tables.update(_decided(tables, boot_excess, costs))
     return tables, missing
+
+
+def _decided(tables: dict[str, pd.DataFrame], boot_excess: dict, costs: dict[str, Costs]
+             ) -> dict[str, pd.DataFrame]:
+    """The headline's verdicts with multiplicity control over its table, "burden beyond
+    robot time" with control over its own, the power advice at the headline's level, and
+    the calibration on placebos."""
+    nulls = tables[PREFIX + "null_rates"]
+    head = family_verdicts(tables[PREFIX + "headline"], nulls)
+    comps = list(dict.fromkeys(head["comparison"]))
+    burden_metrics = ("mean_delay", "cvar90")
+    m = max(sum(c in costs for c in comps) * len(burden_metrics), 1)
+    burden = [burden_beyond_time(head[head["comparison"] == c], nulls, boot_excess, burden=b,
+                                 alpha=ALPHA / m)
+              for c in comps for b in burden_metrics]
+    out = {PREFIX + "headline": head,
+           PREFIX + "burden": pd.concat(burden, ignore_index=True).assign(family=m),
+           PREFIX + "calibration": calibration_table(
+               nulls, tables.get(PREFIX + "placebo_crossovers"),
+               family=int(head.loc[head["rule"] == "raw", "family"].max()))}
+    curves = tables.get(PREFIX + "curve")
+    power = []
+    for c in comps:
+        if c not in costs:
+            continue
+        h = head[head["comparison"] == c]
+        # only a comparison's own curve says how its null's spread falls with seed sets:
+        # another comparison's null is of another kind (swap vs size-matched)
+        curve = (curves[curves["comparison"] == c]
+                 if curves is not None and not curves.empty else None)
+        power.append(design_advice(h, curve, costs[c], alpha=ALPHA / int(h["family"].max())))
+    if power:
+        out[PREFIX + "power"] = pd.concat(power, ignore_index=True)
+    return out
 
 
 def design_costs(runs: pd.DataFrame, observed: list[str], nulls: list, manifest: dict

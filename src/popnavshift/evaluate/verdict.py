@@ -15,8 +15,9 @@ evaluated controller against each baseline:
   makes a few;
 * **crossovers**: per (cell, baseline, metric), the paired intersection–union test of a
   qualitative interaction across the populations (valid for populations that share
-  episodes and personas), Benjamini–Hochberg-adjusted over the card's whole table — the
-  test the verdict rests on — with the crossover size each could detect;
+  episodes and personas), Holm-adjusted over the card's whole table (valid whatever the
+  dependence between cells) — the test the verdict rests on — with the crossover size each
+  could detect;
 * **safety**: the share of its runs ending in a pedestrian collision, a world
   collision or a controller error, against a threshold;
 * **verdict**: ``fails every run`` > ``unsafe`` > ``population-sensitive`` (a
@@ -42,9 +43,9 @@ from ..analysis.resample import build_design, episode_weights, resampled_metrics
 from ..analysis.significance import (
     ALPHA,
     LEVEL,
-    bh,
     crossover_tests,
     detectable_crossover,
+    holm,
     orderings,
 )
 from ..populations.build import population_order
@@ -124,7 +125,7 @@ def card_evidence(runs: pd.DataFrame, pedestrians: pd.DataFrame, controller: str
         undecided.append(seed_sets * (z * open_["se"] / open_["diff"].abs()) ** 2)
     need = pd.concat(undecided)
     tests = pd.concat(cross, ignore_index=True)
-    tests["p_adj"] = bh(tests["p"].to_numpy(float))  # over the card's whole table
+    tests["p_adj"] = holm(tests["p"].to_numpy(float))  # over the card's whole table
     tests["crossover"] = tests["p_adj"] <= ALPHA
     tests["detectable"] = detectable_crossover(  # at the card's table size
         tests["se"].to_numpy(float), tests["n_episodes"].to_numpy(float),
@@ -195,7 +196,7 @@ def verdict(runs: pd.DataFrame, controller: str, ev: Evidence, *, seed_sets: int
     found = x[x["crossover"]]
     tests = (f"{len(found)} of {int(x['p'].notna().sum())} crossover tests (one per cell, "
              "baseline and metric across the populations; paired, valid for populations that "
-             f"share episodes and personas) survive Benjamini–Hochberg control at {ALPHA:g}")
+             f"share episodes and personas) survive Holm's control at {ALPHA:g}")
     counts = f"{tests}; {counts}"
     if len(found):
         top = found.groupby(["baseline", "metric"]).size().sort_values(ascending=False)
