@@ -57,11 +57,12 @@ def evaluate(
     n_boot: Annotated[int, typer.Option(min=1, help="Bootstrap resamples for the CIs.")] = 1000,
     seed: Annotated[int, typer.Option(min=0, help="Seed of the bootstrap.")] = 0,
     safety_threshold: Annotated[
-        float,
-        typer.Option(min=0.0, max=1.0, help="Share of the controller's runs ending in a "
-                     "collision or a controller error above which the card shows a safety "
-                     "banner and the verdict is 'unsafe'."),
-    ] = 0.05,
+        float | None,
+        typer.Option(min=0.0, max=1.0, help="Also read unsafe when pedestrian collisions, "
+                     "wall contacts or controller errors exceed this share of the controller's "
+                     "runs, whatever the baselines do (off by default: the verdict compares "
+                     "each failure with the least safe baseline on the same runs)."),
+    ] = None,
 ) -> None:
     """Evaluate CONTROLLER under every population of a study, next to the baselines.
 

@@ -30,8 +30,9 @@ def plan(
     ] = None,
 ) -> None:
     """Print the run counts of a study, per part (nothing is run), and what would decide
-    each undecided headline rate: more episode seed sets, more null replicates, or nothing
-    reachable, with the runs and minutes it costs.
+    each undecided headline rate (more seed sets, more null replicates, or nothing).
+
+    The advice gives the runs and minutes it costs.
 
     The advice comes from a study that has already run (its report's
     tables/evidence_power.csv, measured on its own replicate curve and nulls): run a pilot,
@@ -121,9 +122,11 @@ def calibrate(
     nulls, with a Clopper–Pearson 95% interval.
 
     A placebo takes one null replicate as if it were the observed populations and the other
-    replicates as its null: no population effect, so every claim is false. A rule is within
-    its nominal level when its interval's lower end is at or below it. Example:
-    `popnavshift calibrate study`.
+    replicates as its null: no population effect, so every claim is false. First the
+    headline table as the report decides it (all its rates together), then each test.
+    Status: 'within' (the interval reaches down to the nominal level and rules out twice
+    it), 'above nominal', or 'too few placebos to tell'. Exit 1 if the study ran no null.
+    Example: `popnavshift calibrate study`.
     """
     from ..engine.store import check_study_folder
 

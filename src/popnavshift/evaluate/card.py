@@ -18,8 +18,9 @@ What the card says, for the evaluated part of a study (every population × cell)
 * the worst run: a collision, else a timeout, else the largest worst-decile delay;
 * first of all, the verdict (:mod:`.verdict`): per-population ranks with rank
   intervals, wins and losses per cell, significant reversals (paired episode
-  bootstrap), and a safety banner when collisions or controller errors exceed a
-  threshold. A controller that fails every run never reads as robust.
+  bootstrap), and a safety banner naming each failure that makes it less safe than the
+  baselines (:mod:`.safety`; an absolute threshold is an option). A controller that
+  fails every run never reads as robust.
 """
 
 from __future__ import annotations
@@ -42,8 +43,8 @@ from ..analysis import (
 )
 from ..analysis.delay import UNIT
 from ..tables import RUN_KEY
+from .safety import failure_rates, paired_differences, safety_findings
 from .verdict import (
-    SAFETY_THRESHOLD,
     Evidence,
     Verdict,
     card_evidence,
@@ -72,12 +73,14 @@ class Card:
     worst_run: dict[str, Any] | None
     evidence: Evidence
     verdict: Verdict
+    safety_rates: pd.DataFrame  # per (kind, scope, controller): rate with its interval
+    safety_differences: pd.DataFrame  # per (kind, scope, baseline): paired difference
 
 
 def card_tables(runs: pd.DataFrame, pedestrians: pd.DataFrame, controller: str,
                 baselines: tuple[str, ...], *, rng: np.random.Generator,
                 n_boot: int = 1000, seed_sets: int = 1,
-                safety_threshold: float = SAFETY_THRESHOLD) -> Card:
+                safety_threshold: float | None = None) -> Card:
     """Every table of the card from the evaluated part's runs and pedestrians.
 
     ``rng`` draws the cell bootstrap of the raw rates, then the episode bootstrap of
@@ -93,10 +96,13 @@ def card_tables(runs: pd.DataFrame, pedestrians: pd.DataFrame, controller: str,
     reversals = reversals_against(cells, controller, baselines, rng=rng, n_boot=n_boot)
     ev = card_evidence(runs, pedestrians, controller, baselines, rng=rng, n_boot=n_boot,
                        seed_sets=seed_sets)
+    rates = failure_rates(runs, order)
+    diffs = paired_differences(runs, controller, list(baselines), rng=rng, n_boot=n_boot)
+    unsafe = safety_findings(rates, diffs, controller, list(baselines), safety_threshold)
     return Card(controller, baselines, outcomes, per_population(cells),
                 population_gaps(cells, controller, baselines), reversals, errors,
                 worst_run(runs, paired, controller), ev,
-                verdict(runs, controller, ev, seed_sets=seed_sets, threshold=safety_threshold))
+                verdict(runs, controller, ev, seed_sets=seed_sets, safety=unsafe), rates, diffs)
 
 
 def per_population(cells: pd.DataFrame) -> pd.DataFrame:

@@ -18,6 +18,7 @@ from ..analysis import METRICS, TOLERANCES
 from ..io import write_atomic, write_text
 from ..populations.build import population_order
 from .card import METRIC_LABELS, N_WORST, Card
+from .safety import FAILURES
 from .verdict import VERDICT_METRICS
 
 
@@ -96,7 +97,36 @@ def render_html(card: Card, meta: dict[str, Any], png_name: str, svg: str | None
         reversals=card.reversals.to_dict("records"), top=_most_reversed(card.reversals),
         errors=card.errors.head(10).to_dict("records"), verdict=card.verdict,
         ranks=_rank_rows(card, order), wins=_win_rows(card),
-        sig=card.evidence.reversals.to_dict("records"))
+        sig=card.evidence.reversals.to_dict("records"), safety=safety_rows(card))
+
+
+def safety_rows(card: Card) -> list[dict[str, Any]]:
+    """Per failure kind and scope (all runs, then each scene where anyone failed): the
+    controller's rate [95% CI], each baseline's, and the paired difference to the least
+    safe baseline [95% CI]; scenes with no failure of that kind are left out."""
+    rates, diffs = card.safety_rates, card.safety_differences
+    rows = []
+    for kind, label in FAILURES.items():
+        for scope in rates.loc[rates["kind"] == kind, "scope"].unique():
+            r = rates[(rates["kind"] == kind) & (rates["scope"] == scope)].set_index(
+                "controller")
+            if scope != "all" and r["failures"].sum() == 0:
+                continue
+            own = r.loc[card.controller]
+            base = [b for b in card.baselines if b in r.index]
+            worst = max(base, key=lambda b: r.loc[b, "rate"]) if base else None
+            d = diffs[(diffs["kind"] == kind) & (diffs["scope"] == scope)
+                      & (diffs["baseline"] == worst)] if worst else pd.DataFrame()
+            rows.append({"kind": label, "scope": scope,
+                         "own": f"{100 * own['rate']:.1f}% [{100 * own['low']:.1f}, "
+                                f"{100 * own['high']:.1f}]",
+                         "baselines": [f"{100 * r.loc[b, 'rate']:.1f}%" if b in r.index else "–"
+                                       for b in card.baselines],
+                         "diff": "–" if d.empty else
+                         f"{100 * d['difference'].iloc[0]:+.1f} pp [{100 * d['low'].iloc[0]:+.1f},"
+                         f" {100 * d['high'].iloc[0]:+.1f}] vs {worst}",
+                         "bad": bool(not d.empty and d["low"].iloc[0] > 0)})
+    return rows
 
 
 def _rank_rows(card: Card, order: list[str]) -> list[dict[str, Any]]:
@@ -164,9 +194,23 @@ td{text-align:right}td.l,th{text-align:left}.bad{color:#b00;font-weight:bold}
 {{ meta.check }}. Runs: {{ meta.reused }} reused, {{ meta.executed }} executed.</p>
 <div class="verdict {{ verdict.label | replace(' ', '-') }}"><b>Verdict: {{ verdict.label }}.</b>
 {{ verdict.text }}</div>
-{% if verdict.safety %}<p class="danger"><b>Safety:</b> {% for l in verdict.safety %}{{ l
-}}{% if not loop.last %}; {% endif %}{% endfor %}. Rankings of an unsafe controller are not
-evidence of robustness.</p>{% endif %}
+{% if verdict.safety %}<p class="danger"><b>Safety:</b> {{ verdict.safety | length }}
+failure kind{% if verdict.safety | length > 1 %}s{% endif %} above the baselines (table
+below). Rankings of an unsafe controller are not evidence of robustness.</p>{% endif %}
+<h2>Safety: each failure, against the baselines on the same runs</h2>
+<table><tr><th>failure</th><th>scene</th><th>{{ card.controller }} [95% CI]</th>
+{% for b in card.baselines %}<th>{{ b }}</th>{% endfor %}<th>difference to the least safe
+baseline [95% CI]</th></tr>
+{% for r in safety %}<tr><td class="l">{{ r.kind }}</td><td class="l">{{ r.scope }}</td>
+<td{% if r.bad %} class="bad"{% endif %}>{{ r.own }}</td>
+{% for b in r.baselines %}<td>{{ b }}</td>{% endfor %}
+<td{% if r.bad %} class="bad"{% endif %}>{{ r.diff }}</td></tr>{% endfor %}</table>
+<p class="small">Rates over the controller's runs (Clopper–Pearson intervals); the
+difference is paired on the same episodes and populations, its interval from resampling
+episodes. A collision counts whoever moved (the robot's speed at contact is not
+recorded). Unsafe = significantly more of a failure than the least safe baseline
+(timeouts excepted){% if meta.get('safety_threshold') is not none %}, or above
+{{ meta.safety_threshold | pct }} of its runs{% endif %}.</p>
 {% if card.errors | length %}<p class="warn"><b>Controller errors:</b> the controller raised
 in {{ meta.n_errors }} of its {{ meta.n_runs }} runs; they count as failures (robot time
 45 s, no pedestrian delay). First message: <code>{{ card.errors.error.iloc[0] }}</code></p>

@@ -29,6 +29,7 @@ import re
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -49,7 +50,7 @@ from ..engine.worker import Context
 from ..episodes.specs import all_episodes
 from ..errors import ConfigError, InputError
 from ..hashing import digest
-from ..io import write_json
+from ..io import write_atomic, write_json
 from ..pipeline import read_table
 from ..sim.check import ControllerContractError, check_controller
 from ..sim.controllers import CONTROLLERS
@@ -60,7 +61,6 @@ from ..version import __version__
 from ..viz.replay import render_svg
 from .card import card_tables
 from .card_page import write_card
-from .verdict import SAFETY_THRESHOLD
 
 BASELINES: tuple[str, ...] = BUILTIN_CONTROLLERS
 Tables = tuple[pd.DataFrame, pd.DataFrame]  # runs, pedestrians
@@ -249,10 +249,13 @@ def replay(ev: Evaluation, key: dict[str, Any]) -> tuple[dict, dict]:
 
 
 def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0,
-              safety_threshold: float = SAFETY_THRESHOLD) -> tuple[Path, Path]:
-    """Write ``card.html`` and ``card.png`` into ``ev.out``; returns their paths.
-    ``seed`` drives the bootstrap (the same seed gives the same intervals);
-    ``safety_threshold`` is the share of collisions or errors that raises the banner."""
+              safety_threshold: float | None = None) -> tuple[Path, Path]:
+    """Write ``card.html``, ``card.png``, the verdict and safety tables as ``card.json`` and
+    ``safety_rates.csv`` / ``safety_differences.csv`` into ``ev.out``; returns the page's
+    and the figure's paths. ``seed`` drives the bootstrap (the same seed gives the same
+    intervals); ``safety_threshold``, when given, is a share of the controller's runs
+    above which a collision kind or controller errors read unsafe whatever the baselines
+    do."""
     n_sets = int(seed_sets(ev.runs).nunique())
     card = card_tables(ev.runs, ev.pedestrians, ev.controller, ev.baselines,
                        rng=np.random.default_rng(seed), n_boot=n_boot, seed_sets=n_sets,
@@ -274,6 +277,18 @@ def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0,
             "backends": ", ".join(sorted(ev.runs["backend"].unique())),
             "mappings": ", ".join(sorted(ev.runs["mapping"].unique())),
             "replay_note": note, "n_boot": n_boot, "seed": seed,
-            "base_folder": str(ev.base_folder), "seed_sets": n_sets}
+            "base_folder": str(ev.base_folder), "seed_sets": n_sets,
+            "safety_threshold": safety_threshold}
+    for name in ("safety_rates", "safety_differences"):
+        table = getattr(card, name)
+        write_atomic(ev.out / f"{name}.csv", partial(table.to_csv, index=False))
+    write_json({"controller": ev.controller, "baselines": list(ev.baselines),
+                "verdict": {"label": card.verdict.label, "text": card.verdict.text,
+                            "safety": card.verdict.safety,
+                            "seed_sets_to_decide": (card.verdict.seed_sets_to_decide if
+                                                    np.isfinite(card.verdict.seed_sets_to_decide)
+                                                    else None)},
+                "safety_threshold": safety_threshold, "n_boot": n_boot, "seed": seed},
+               ev.out / "card.json")
     return write_card(card, meta, ev.out, svg)
 

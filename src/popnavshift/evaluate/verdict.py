@@ -18,8 +18,9 @@ evaluated controller against each baseline:
   episodes and personas), Holm-adjusted over the card's whole table (valid whatever the
   dependence between cells) — the test the verdict rests on — with the crossover size each
   could detect;
-* **safety**: the share of its runs ending in a pedestrian collision, a world
-  collision or a controller error, against a threshold;
+* **safety** (:mod:`.safety`): per failure kind and scene, its rate beside every
+  baseline's on the same runs, and whether it is less safe than the least safe baseline
+  (paired, with an interval) — each unsafe finding names its failure;
 * **verdict**: ``fails every run`` > ``unsafe`` > ``population-sensitive`` (a
   crossover survives multiplicity control) > ``robust in this study`` (none, with at
   least half of its orderings decided and tests that would see a crossover of
@@ -51,9 +52,6 @@ from ..analysis.significance import (
 from ..populations.build import population_order
 
 VERDICT_METRICS: tuple[str, ...] = ("robot_time", "mean_delay", "cvar90")
-SAFETY_OUTCOMES: tuple[str, ...] = ("pedestrian_collision", "world_collision",
-                                    "controller_error")
-SAFETY_THRESHOLD = 0.05  # share of the controller's runs
 DECIDED_SHARE = 0.5  # orderings that must be significant before "robust" can be said
 #: The largest crossover (s, ± under two populations in one cell) the tests must be able to see
 #: with 80 % power before "no crossover" reads as robust.
@@ -161,24 +159,12 @@ def crossover_power(tests: pd.DataFrame) -> dict:
     return {"metric": str(by.idxmax()), "size": float(by.max())}
 
 
-def safety_lines(runs: pd.DataFrame, controller: str,
-                 threshold: float = SAFETY_THRESHOLD) -> list[str]:
-    """One line per safety outcome whose share of the controller's runs exceeds ``threshold``."""
-    own = runs[runs["controller"] == controller]
-    lines = []
-    for outcome in SAFETY_OUTCOMES:
-        share = float((own["outcome"] == outcome).mean()) if len(own) else 0.0
-        if share > threshold:
-            lines.append(f"{outcome.replace('_', ' ')}s in {100 * share:.1f}% of its "
-                         f"{len(own)} runs (threshold {100 * threshold:.0f}%)")
-    return lines
-
-
 def verdict(runs: pd.DataFrame, controller: str, ev: Evidence, *, seed_sets: int = 1,
-            threshold: float = SAFETY_THRESHOLD) -> Verdict:
-    """The card's one-line verdict and its explanation (module doc)."""
+            safety: list[str] | tuple[str, ...] = ()) -> Verdict:
+    """The card's one-line verdict and its explanation (module doc); ``safety`` are the
+    unsafe findings of :func:`.safety.safety_findings` (each names its failure)."""
     own = runs[runs["controller"] == controller]
-    safety = safety_lines(runs, controller, threshold)
+    safety = list(safety)
     r = ev.reversals
     sig, sig_n = int(r["sig_reversals"].sum()), int(r["sig_comparable"].sum())
     raw, raw_n = int(r["raw_reversals"].sum()), int(r["raw_comparable"].sum())
@@ -190,8 +176,8 @@ def verdict(runs: pd.DataFrame, controller: str, ev: Evidence, *, seed_sets: int
         return Verdict("fails every run", f"It reached the goal in none of its {len(own)} runs: "
                        "its rankings mean nothing.", safety, ev.undecided_seed_sets)
     if safety:
-        return Verdict("unsafe", "Safety first: " + "; ".join(safety) + f". Rankings: {counts}.",
-                       safety, ev.undecided_seed_sets)
+        return Verdict("unsafe", "Safety first: " + "; ".join(safety)
+                       + f". Rankings: {counts}.", safety, ev.undecided_seed_sets)
     x = ev.crossovers
     found = x[x["crossover"]]
     tests = (f"{len(found)} of {int(x['p'].notna().sum())} crossover tests (one per cell, "
