@@ -106,3 +106,22 @@ def test_the_card_uses_the_study_make_run_built(tmp_path, monkeypatch):
     s, folder = _baseline_study(None)
     assert (s.name, s.seed, folder) == ("built", 3, Path("study"))
     assert _baseline_study("quick")[0].name == "quick"  # an explicit name wins
+
+
+def test_a_design_with_one_episode_per_cell_says_it_cannot_be_tested():
+    runs, peds = synthetic_study({"P": no_effect, "Q": no_effect}, variants=1)
+    card = card_tables(runs, peds, "a", BASELINES, rng=np.random.default_rng(0), n_boot=50)
+    assert card.verdict.label == "inconclusive"
+    assert card.verdict.text.startswith("This design cannot support the tests")
+    page = " ".join(render_html(card, meta(runs), "card.png", None).split())
+    assert "need at least 2 episodes per cell" in page and "Rank per population" not in page
+
+
+def test_a_card_of_a_controller_that_fails_every_run_draws_no_ranking():
+    runs, peds = synthetic_study({"P": no_effect, "Q": no_effect}, variants=4, noise=0.1)
+    runs.loc[runs["controller"] == "a", "outcome"] = "timeout"
+    card = card_tables(runs, peds, "a", BASELINES, rng=np.random.default_rng(0), n_boot=50)
+    page = " ".join(render_html(card, meta(runs), "card.png", None).split())
+    assert card.verdict.label == "fails every run"
+    assert "Where it does worst" not in page and "Rank per population" not in page
+    assert "no ranking, win or reversal below says anything about it" in page

@@ -97,7 +97,9 @@ def render_html(card: Card, meta: dict[str, Any], png_name: str, svg: str | None
         reversals=card.reversals.to_dict("records"), top=_most_reversed(card.reversals),
         errors=card.errors.head(10).to_dict("records"), verdict=card.verdict,
         ranks=_rank_rows(card, order), wins=_win_rows(card),
-        sig=card.evidence.reversals.to_dict("records"), safety=safety_rows(card))
+        sig=card.evidence.reversals.to_dict("records"), safety=safety_rows(card),
+        testable=bool(card.evidence.reversals["orderings"].sum()),
+        failed=card.verdict.label == "fails every run")
 
 
 def safety_rows(card: Card) -> list[dict[str, Any]]:
@@ -191,7 +193,8 @@ td{text-align:right}td.l,th{text-align:left}.bad{color:#b00;font-weight:bold}
 <p>Study <b>{{ meta.study }}</b>, part <b>{{ meta.part }}</b> ({{ meta.n_cells }} cells ×
 {{ meta.n_populations }} populations, backend(s) {{ meta.backends }}, mapping(s)
 {{ meta.mappings }}) against {{ card.baselines | join(", ") }}. Contract check:
-{{ meta.check }}. Runs: {{ meta.reused }} reused, {{ meta.executed }} executed.</p>
+{{ meta.check }}. The card uses {{ meta.get("n_used", meta.reused + meta.executed) }} runs
+of this part ({{ meta.reused }} reused, {{ meta.executed }} executed).</p>
 <div class="verdict {{ verdict.label | replace(' ', '-') }}"><b>Verdict: {{ verdict.label }}.</b>
 {{ verdict.text }}</div>
 {% if verdict.safety %}<p class="danger"><b>Safety:</b> {{ verdict.safety | length }}
@@ -215,13 +218,13 @@ recorded). Unsafe = significantly more of a failure than the least safe baseline
 in {{ meta.n_errors }} of its {{ meta.n_runs }} runs; they count as failures (robot time
 45 s, no pedestrian delay). First message: <code>{{ card.errors.error.iloc[0] }}</code></p>
 {% endif %}
-<p>Where it does worst (lowest success, then largest mean-delay gap to the best
+{% if not failed %}<p>Where it does worst (lowest success, then largest mean-delay gap to the best
 baseline): {% for p in worst %}<b>{{ p }}</b>{% if not loop.last %}, {% endif %}{% endfor %}.
 {% if top %}Its ranking reverses most often against <b>{{ top.baseline }}</b> on
 {{ labels[top.metric].split(" [")[0] }}: {{ top.rate | pct }} of comparable population
 pairs (95% CI {{ top.ci_low | pct }}–{{ top.ci_high | pct }}).{% else %}Its ranking
 against the baselines never reverses between two populations.{% endif %}</p>
-<img src="{{ png }}" alt="per-population metrics and reversal rates" width="1100">
+<img src="{{ png }}" alt="per-population metrics and reversal rates" width="1100">{% endif %}
 <div class="cols"><div>
 <h2>Outcomes</h2><table><tr><th>controller</th><th>success %</th><th>ped. coll. %</th>
 <th>world coll. %</th><th>timeout %</th><th>ctrl error %</th><th>robot time [s]</th>
@@ -238,8 +241,10 @@ against the baselines never reverses between two populations.{% endif %}</p>
 <td>{% if r.comparisons %}{{ r.ci_low | pct }}–{{ r.ci_high | pct }}{% else %}–{% endif
 %}</td></tr>{% endfor %}</table>
 </div></div>
-<h2>Rank per population (1 = best of {{ card.baselines | length + 1 }}; [90% interval over
-episode resamples])</h2>
+{% if failed %}<p class="warn">It reached the goal in none of its runs: no ranking, win or
+reversal below says anything about it.</p>{% endif %}
+{% if testable and not failed %}<h2>Rank per population (1 = best of
+{{ card.baselines | length + 1 }}; [90% interval over episode resamples])</h2>
 <table><tr><th>population</th>{% for m in ranks_metrics %}<th>{{ labels[m] }}</th>{% endfor %}</tr>
 {% for r in ranks %}<tr><td class="l">{{ r.population }}</td>{% for m in ranks_metrics
 %}<td>{{ r[m] }}</td>{% endfor %}</tr>{% endfor %}</table>
@@ -254,7 +259,9 @@ episode resamples])</h2>
 {% for r in sig %}<tr><td class="l">{{ r.baseline }}</td><td class="l">{{ r.metric }}</td>
 <td>{{ r.sig_reversals }} / {{ r.sig_comparable }}</td>
 <td>{{ r.raw_reversals }} / {{ r.raw_comparable }}</td></tr>{% endfor %}</table>
-</div></div>
+</div></div>{% elif not failed %}<p class="warn">Ranks with intervals, significant wins and
+losses and significant reversals need at least 2 episodes per cell: this design has one, so
+none is shown (the raw reversal counts above are descriptive).</p>{% endif %}
 <h2>Per population (mean over cells; Δ = minus the best baseline, positive is
 worse)</h2>
 <table><tr><th>population</th><th>success %</th>{% for m in metrics %}<th>{{ labels[m] }}</th>

@@ -277,7 +277,7 @@ def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0,
             "backends": ", ".join(sorted(ev.runs["backend"].unique())),
             "mappings": ", ".join(sorted(ev.runs["mapping"].unique())),
             "replay_note": note, "n_boot": n_boot, "seed": seed,
-            "base_folder": str(ev.base_folder), "seed_sets": n_sets,
+            "base_folder": str(ev.base_folder), "seed_sets": n_sets, "n_used": len(ev.runs),
             "safety_threshold": safety_threshold}
     for name in ("safety_rates", "safety_differences"):
         table = getattr(card, name)

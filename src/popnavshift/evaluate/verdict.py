@@ -41,6 +41,7 @@ from scipy import stats
 from ..analysis.delay import cell_metrics, paired_delays
 from ..analysis.evidence import controller_ranks
 from ..analysis.resample import build_design, episode_weights, resampled_metrics
+from ..analysis.reversals import METRICS
 from ..analysis.significance import (
     ALPHA,
     LEVEL,
@@ -51,7 +52,8 @@ from ..analysis.significance import (
 )
 from ..populations.build import population_order
 
-VERDICT_METRICS: tuple[str, ...] = ("robot_time", "mean_delay", "cvar90")
+#: The card's one metric set, the paper's three: the verdict, tables and figure all use it.
+VERDICT_METRICS: tuple[str, ...] = METRICS
 DECIDED_SHARE = 0.5  # orderings that must be significant before "robust" can be said
 #: The largest crossover (s, ± under two populations in one cell) the tests must be able to see
 #: with 80 % power before "no crossover" reads as robust.
@@ -175,6 +177,15 @@ def verdict(runs: pd.DataFrame, controller: str, ev: Evidence, *, seed_sets: int
     if len(own) == 0 or not (own["outcome"] == "success").any():
         return Verdict("fails every run", f"It reached the goal in none of its {len(own)} runs: "
                        "its rankings mean nothing.", safety, ev.undecided_seed_sets)
+    if not r["orderings"].sum():
+        untestable = ("This design cannot support the tests: with one episode per cell an "
+                      "ordering has no spread to be judged by, so no ranking, win or reversal "
+                      "is tested. Run a study with several variants per cell (the paper study, "
+                      "`make run`, has 3; add `seeds:` for more) and evaluate against it.")
+        if safety:
+            return Verdict("unsafe", "Safety first: " + "; ".join(safety) + ". " + untestable,
+                           safety, ev.undecided_seed_sets)
+        return Verdict("inconclusive", untestable, safety, ev.undecided_seed_sets)
     if safety:
         return Verdict("unsafe", "Safety first: " + "; ".join(safety)
                        + f". Rankings: {counts}.", safety, ev.undecided_seed_sets)
