@@ -52,6 +52,18 @@ def test_quick_study_end_to_end(tmp_path):
     assert "pedestrians.parquet · " in described.stdout
     again = cli("run", "quick", "--out", str(out), "--no-report")
     assert again.returncode == 0 and "nothing to do" in again.stderr
+    # the report: built once with a line per step in a log, then left alone while current
+    first = cli("run", "quick", "--out", str(out))
+    assert first.returncode == 0 and "rebuilding the report: there is no report yet" in \
+        first.stderr and "report: the page" in first.stderr
+    page = out / "report" / "index.html"
+    written = page.stat().st_mtime_ns
+    second = cli("run", "quick", "--out", str(out))
+    assert "report is up to date" in second.stderr and page.stat().st_mtime_ns == written
+    (out / "manifest.json").touch()  # an input changed: the report is built again
+    third = cli("run", "quick", "--out", str(out))
+    assert "rebuilding the report: the study's tables" in third.stderr
+    assert page.stat().st_mtime_ns > written
 
 
 def test_stages_one_by_one_and_personas_to_a_file(tmp_path):

@@ -387,3 +387,12 @@ def test_a_study_name_cannot_leave_the_working_folder(tmp_path, name):
     assert_one_line_error(cli("run", "s.yaml", cwd=work), "study name")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["work"]
     assert sorted(p.name for p in work.iterdir()) == ["s.yaml"]
+
+
+def test_an_unknown_executor_fails_before_any_stage(tmp_path):
+    out = tmp_path / "s"
+    proc = subprocess.run([sys.executable, "-m", "popnavshift", "run", "quick", "--out",
+                           str(out), "--executor", "bogus"], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 2 and "unknown executor 'bogus'" in proc.stderr
+    assert "Traceback" not in proc.stderr and not (out / "personas.parquet").exists()

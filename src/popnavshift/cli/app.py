@@ -110,7 +110,11 @@ def folder(path: Path) -> Path:
 
 
 def check_workers(workers: int, executor: str = "local") -> None:
-    """Local worker processes beyond 4 per CPU only thrash memory (each holds ~300 MB)."""
+    """The executor exists and its optional package is installed (checked before any stage
+    runs); local worker processes beyond 4 per CPU only thrash memory (each holds ~300 MB)."""
+    from ..engine.executors import check_executor  # the engine loads navground: lazily
+
+    check_executor(executor)
     cpus = os.cpu_count() or 1
     if executor == "local" and workers > 4 * cpus:
         raise ConfigError(f"--workers {workers} is more than 4 per CPU ({cpus} CPUs here)",

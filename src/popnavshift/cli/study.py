@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 from typing import Annotated
 
@@ -261,7 +262,15 @@ def run(
             f"{report_.reused:,} reused, {report_.seconds:.1f} s"
         )
     if report:
-        _write_report(target)
+        from ..report.build import report_is_current
+
+        why = report_is_current(target, {"rng_seed": 0, "n_boot": 1000, "replays": 2})
+        if report_.nothing_to_do and not why:
+            console.print(f"report is up to date: {say(target / 'report' / 'index.html')}")
+        else:
+            if report_.nothing_to_do:
+                console.print(f"rebuilding the report: {why}", highlight=False)
+            _write_report(target)
     console.print(f"outputs in {say(target.resolve())}")
 
 
@@ -279,6 +288,13 @@ def _write_report(study_dir: Path, n_boot: int = 1000) -> None:
     from ..report.build import build_report
 
     check_study_folder(study_dir)
-    with console.status("writing the report…"):
-        path = build_report(study_dir, n_boot=n_boot)
-    console.print(f"report → {say(path)}")
+    started = time.perf_counter()
+    with console.status("writing the report…") as status:
+        def step(name: str) -> None:
+            status.update(f"writing the report: {name}…")
+            if not console.is_terminal:  # a pipe or a CI log: one plain line per step
+                console.print(f"report: {name} ({time.perf_counter() - started:.0f} s)",
+                              highlight=False)
+
+        path = build_report(study_dir, n_boot=n_boot, progress=step)
+    console.print(f"report → {say(path)} ({time.perf_counter() - started:.0f} s)")

@@ -10,6 +10,7 @@ the batches and stores each one's shards as it finishes.
 
 from __future__ import annotations
 
+import importlib.util
 import multiprocessing as mp
 import os
 from collections.abc import Callable, Iterator, Sequence
@@ -118,6 +119,16 @@ def _run_batch_ray(batch: Batch, context_ref: list) -> Result:
 
 
 EXECUTORS: dict[str, Callable[..., Iterator[Result]]] = {"local": run_local, "ray": run_ray}
+
+
+def check_executor(name: str) -> None:
+    """Fail before any stage runs on an unknown executor or a missing optional package
+    (UnknownNameError / ConfigError), instead of after the persona and probe stages."""
+    if name not in EXECUTORS:
+        raise UnknownNameError("executor", name, EXECUTORS)
+    if name == "ray" and importlib.util.find_spec("ray") is None:
+        raise ConfigError("--executor ray needs Ray, which is not installed",
+                          hint="pip install 'popnavshift[ray]'")
 
 
 def execute(todo: Sequence[Batch], store: RunStore, context: Context, workers: int, *,
