@@ -189,3 +189,24 @@ def test_probe_accepts_a_respondent_class_spec(tmp_path):
     assert set(pd.read_parquet(out / "responses.parquet").respondent) == {"grumpy"}
     bad = run("probe", "--respondent", "my_resp:Nope", "--out", str(out))
     assert_one_line_error(bad, "Nope")
+
+
+def test_episodes_show_whole_ids_at_80_columns_and_check_the_scene():
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "COLUMNS": "80"}
+
+    def episodes(*args):
+        return subprocess.run([sys.executable, "-m", "popnavshift", "episodes", *args],
+                              capture_output=True, text=True, timeout=120, env=env)
+
+    shown = episodes("--scene", "obstruction")
+    assert shown.returncode == 0
+    assert "obstruction-w1.8-d0.06-s0.6-v1" in shown.stdout + shown.stderr  # never cut
+    bad = episodes("--scene", "obstructon")
+    assert bad.returncode == 2 and "did you mean 'obstruction'" in bad.stderr
+    counts = json.loads(episodes("--scene", "head_on", "--json").stdout)
+    assert counts["by_scene"] == {"head_on": counts["episodes"]} and counts["episodes"] == 24

@@ -47,8 +47,10 @@ def test_printed_messages_are_the_ones_sent(asked):
     sent = {(m[0]["content"], m[1]["content"]) for m in bodies}
     for section, variant in zip(sections, ("baseline", "deadline"), strict=True):
         system, user = section.split("\n── user ──\n")
-        user = user.split(f"\npersona {pid} · variant")[0].rstrip("\n")
+        user, answer = user.split("\n── recorded answer ──\n")
         assert (system, user) in sent, variant
+        row = responses[(responses["persona_id"] == pid) & (responses["variant"] == variant)]
+        assert answer.startswith(f"actions  P1: {row['action_1'].iloc[0]}, P2: ")  # recorded
     assert "Time pressure: their time pressure is Deadline" in sections[1]
     assert "respondent openai (m)" in proc.stdout
 

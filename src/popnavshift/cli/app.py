@@ -109,6 +109,12 @@ def folder(path: Path) -> Path:
     return path
 
 
+def default_folder(study_name: str) -> Path:
+    """A study's default folder: ``./study`` for the paper study (the one `make run`,
+    `evaluate`, `calibrate` and `show-prompt` read by default), ``./study-<name>`` else."""
+    return Path("study" if study_name == "paper" else f"study-{study_name}")
+
+
 def check_workers(workers: int, executor: str = "local") -> None:
     """The executor exists and its optional package is installed (checked before any stage
     runs); local worker processes beyond 4 per CPU only thrash memory (each holds ~300 MB)."""

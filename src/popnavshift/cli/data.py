@@ -12,6 +12,8 @@ from rich.console import Console
 from rich.markup import escape
 
 from ..errors import InputError
+from ..responses.schema import LEVELS
+from ..tables import ACTION_COLUMNS, Q_COLUMNS
 from .app import app
 
 StudyOpt = Annotated[Path, typer.Option("--study", "-s", help="Study folder.")]
@@ -30,11 +32,12 @@ def show_prompt(
 ) -> None:
     """Print the exact system and user messages a respondent got for one persona.
 
-    Example: popnavshift show-prompt syn-042 --study study
+    Example: popnavshift show-prompt syn-000042 --study study
 
     The text is rebuilt from personas.parquet with the respondent's own prompt
-    builder. The rule respondent reads the fields instead of this text; re-asks
-    after an invalid answer (model reply + correction) are not shown.
+    builder, and the answer recorded in responses.parquet follows it. The rule
+    respondent reads the fields instead of this text; re-asks after an invalid
+    answer (model reply + correction) are not shown.
     """
     from ..pipeline import read_table
     from ..responses.prompt import respondent_messages
@@ -51,12 +54,38 @@ def show_prompt(
         out.print(system, markup=False)
         out.print("[dim]── user ──[/]")
         out.print(user, markup=False)
+        answer = _answer(study, persona_id, v)
+        if answer:
+            out.print("[dim]── recorded answer ──[/]")
+            out.print(answer, markup=False)
+
+
+def _answer(study: Path, persona_id: str, variant: str) -> str:
+    """The answer recorded for (persona, variant): the 8 actions and the 7 self-ratings."""
+    path = study / "responses.parquet"
+    if not path.exists():
+        return ""
+    rows = pd.read_parquet(path)
+    row = rows[(rows["persona_id"] == persona_id) & (rows["variant"] == variant)]
+    if row.empty:
+        return ""
+    r = row.iloc[0]
+    actions = ", ".join(f"P{c[7:]}: {r[c]}" for c in ACTION_COLUMNS)
+    levels = dict(zip((0.0, 0.25, 0.5, 0.75, 1.0), LEVELS, strict=True))
+    items = ", ".join(f"{c[2:]}: {levels.get(float(r[c]), r[c])}" for c in Q_COLUMNS)
+    return f"actions  {actions}\nratings  {items}"
 
 
 def _persona(personas: pd.DataFrame, persona_id: str, where: Path) -> dict:
     match = personas[personas["persona_id"].astype(str) == persona_id]
     if match.empty:
-        close = difflib.get_close_matches(persona_id, personas["persona_id"].astype(str), n=3)
+        ids = personas["persona_id"].astype(str)
+        close = difflib.get_close_matches(persona_id, ids, n=3)
+        digits = "".join(ch for ch in persona_id if ch.isdigit())
+        if digits:  # syn-42 for syn-000042: the same number, other zero padding, first
+            same = [i for i in ids if "".join(ch for ch in i if ch.isdigit()).lstrip("0")
+                    == digits.lstrip("0")][:3]
+            close = same + [c for c in close if c not in same]
         raise InputError(
             f"{where}: no persona {persona_id!r}",
             hint=f"did you mean {', '.join(map(repr, close))}?" if close else None,

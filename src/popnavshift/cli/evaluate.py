@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from ..progress import console
-from .app import MAX_WORKERS, app, check_workers, say
+from .app import MAX_WORKERS, app, check_workers, default_folder, say
 from .simulation import ParamOpt, parse_params
 
 
@@ -33,7 +33,8 @@ def evaluate(
             "--study-dir",
             "-d",
             help="Folder of the baseline study; its finished runs are reused "
-            "(default: ./study-<name>, the folder of `popnavshift run <name>`).",
+            "(default: the folder of `popnavshift run <name>`: ./study for paper, else "
+            "./study-<name>).",
         ),
     ] = None,
     out: Annotated[
@@ -111,4 +112,4 @@ def _baseline_study(name: str | None):
         if cfg:
             return study_from_dict(cfg, str(manifest)), MADE_STUDY
     s = load_study(name or "quick")
-    return s, Path(f"study-{s.name}")
+    return s, default_folder(s.name)

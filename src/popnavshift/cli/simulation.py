@@ -9,7 +9,7 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
-from ..errors import ConfigError
+from ..errors import ConfigError, UnknownNameError
 from ..progress import console
 from .app import app, say
 
@@ -112,6 +112,11 @@ def episodes(
     from ..episodes.specs import all_cells, all_episodes, episodes_table
 
     table = episodes_table(all_episodes(seed))
+    if scene is not None:
+        scenes = sorted(table["scene"].unique())
+        if scene not in scenes:
+            raise UnknownNameError("scene", scene, scenes)
+        table = table[table["scene"] == scene]
     if json_out:
         counts = {
             "cells": len(all_cells()),
@@ -121,21 +126,19 @@ def episodes(
         }
         typer.echo(json.dumps(counts, indent=2))
         return
-    if scene is not None:
-        table = table[table["scene"] == scene]
-    t = Table(*(say(h) for h in (
-        "episode", "scene", "width [m]", "density [/m²]", "robot [m/s]", "variant", "peds"
-    )))
+    # the id is what `simulate` and `replay` take: never cut it; it already names the
+    # scene, width, density, speed and variant, so a narrow terminal shows it alone
+    wide = console.width >= 100
+    t = Table()
+    t.add_column("episode (the id for simulate -e / replay -e)", no_wrap=True, min_width=32)
+    heads = ("scene", "width [m]", "density [/m²]", "robot [m/s]", "variant") if wide else ()
+    for h in heads:
+        t.add_column(say(h))
+    t.add_column("peds", justify="right")
     for r in table.itertuples():
-        t.add_row(
-            r.id,
-            r.scene,
-            f"{r.width:g}",
-            f"{r.density:g}",
-            f"{r.robot_speed:g}",
-            str(r.variant),
-            str(r.n_peds),
-        )
+        cols = (r.scene, f"{r.width:g}", f"{r.density:g}", f"{r.robot_speed:g}",
+                str(r.variant)) if wide else ()
+        t.add_row(r.id, *cols, str(r.n_peds))
     console.print(t)
     console.print(f"{len(all_cells())} cells, {len(table)} episodes shown")
 

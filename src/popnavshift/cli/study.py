@@ -12,7 +12,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from ..progress import console
-from .app import MAX_WORKERS, app, check_workers, folder, say
+from .app import MAX_WORKERS, app, check_workers, default_folder, folder, say
 
 StudyArg = Annotated[
     str | None,
@@ -47,7 +47,7 @@ def plan(
     s = load_study(study or "paper")
     validate_study(s, all_episodes(s.seed))
     counts = count_runs(s, all_episodes(s.seed))
-    pilot = from_dir or Path("study" if study is None else f"study-{s.name}")
+    pilot = from_dir or default_folder(s.name)
     advice = power_advice(pilot / "report" / "tables" / "evidence_power.csv")
     if json_out:
         typer.echo(json.dumps({"study": s.name, "parts": counts,
@@ -209,7 +209,8 @@ def run(
         typer.Option(
             "--out",
             "-o",
-            help="Study folder (default: ./study-<name>, or ./study for the default).",
+            help="Study folder (default: ./study for the paper study, as `make run`; else "
+            "./study-<name>).",
         ),
     ] = None,
     workers: Annotated[
@@ -244,7 +245,7 @@ def run(
 
     check_workers(workers, executor)
     s = load_study(study or "paper")
-    target = folder(out or Path("study" if study is None else f"study-{s.name}"))
+    target = folder(out or default_folder(s.name))
     with study_lock(target):
         report_ = run_study(s, target, workers=workers, executor_name=executor, address=address)
     if report_.nothing_to_do:

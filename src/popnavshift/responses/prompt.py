@@ -29,7 +29,8 @@ def persona_lines(persona: Mapping[str, object]) -> list[str]:
         if value is None or (isinstance(value, float) and value != value) or is_demographic(field):
             continue
         spec = catalog[field]
-        lines.append(f"- {spec['label']}: {spec['phrase'].format(value=value)}")
+        shown = "none" if value == "None" else value  # the vocabulary's word for no need
+        lines.append(f"- {spec['label']}: {spec['phrase'].format(value=shown)}")
     return lines
 
 
