@@ -52,7 +52,7 @@ def test_a_blind_robot_reads_unsafe_for_pedestrian_collisions():
     runs, _ = study()
     runs = fail(fail(runs, "a", "pedestrian_collision", 0.3), "b", "pedestrian_collision", 0.03)
     found, rates, _ = findings(runs)
-    assert len(found) == 1 and found[0].startswith("pedestrian collisions in 29.9% of its 144")
+    assert len(found) == 1 and found[0].startswith("pedestrian collisions (robot moving) in 29.9%")
     assert "least safe baseline, b" in found[0] and "b 2.8%" in found[0]
     # the rate's interval is exact (Clopper–Pearson) and the scenes are listed
     r = rates[(rates["kind"] == "pedestrian_collision") & (rates["controller"] == "a")]
@@ -99,3 +99,17 @@ def test_the_card_names_the_failure_and_shows_the_table():
                               "seed_sets": 1, "safety_threshold": None}, "card.png", None)
     assert "Safety: each failure, against the baselines on the same runs" in page
     assert "difference to the least safe" in page and 'class="bad"' in page
+
+
+def test_a_pedestrian_walking_into_a_standing_robot_is_not_the_robots_collision():
+    runs, _ = study()
+    runs = fail(runs, "a", "pedestrian_collision", 0.3)
+    hit = (runs["controller"] == "a") & (runs["outcome"] == "pedestrian_collision")
+    runs["contact_speed"] = np.where(hit, 0.0, np.nan)  # the robot stood still every time
+    found, rates, _ = findings(runs)
+    assert found == []
+    standing = rates[(rates["kind"] == "standing_contact") & (rates["scope"] == "all")
+                     & (rates["controller"] == "a")]["rate"].iloc[0]
+    assert standing == pytest.approx(0.3, abs=0.01)
+    runs["contact_speed"] = np.where(hit, 0.8, np.nan)  # now it drove into them
+    assert findings(runs)[0][0].startswith("pedestrian collisions (robot moving)")

@@ -285,6 +285,9 @@ ROBOT_METRICS: tuple[Column, ...] = (
          "before the outcome", "m", nullable=True, missing=_NO_ROBOT_NAN),
     _col("ped_collisions", "int", "robot–pedestrian contact events over the run"),
     _col("world_collisions", "int", "robot–wall/obstacle contact events over the run"),
+    _col("contact_speed", "float", "the robot's speed at the contact that ended its run "
+         "(near 0: something walked into a standing robot)", "m/s", nullable=True,
+         missing="no collision ended the run (or no robot)"),
 )
 #: each pedestrian's metrics: columns of ``pedestrians`` that
 #: :func:`popnavshift.sim.metrics.pedestrian_metrics` computes, in its order

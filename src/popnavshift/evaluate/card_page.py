@@ -210,9 +210,10 @@ baseline [95% CI]</th></tr>
 <td{% if r.bad %} class="bad"{% endif %}>{{ r.diff }}</td></tr>{% endfor %}</table>
 <p class="small">Rates over the controller's runs (Clopper–Pearson intervals); the
 difference is paired on the same episodes and populations, its interval from resampling
-episodes. A collision counts whoever moved (the robot's speed at contact is not
-recorded). Unsafe = significantly more of a failure than the least safe baseline
-(timeouts excepted){% if meta.get('safety_threshold') is not none %}, or above
+episodes. A pedestrian collision with the robot slower than 0.05 m/s at the contact is a
+pedestrian walking into the standing robot, on its own line. Unsafe = significantly more
+of a failure than the least safe baseline (timeouts and standing contacts excepted)
+{%- if meta.get('safety_threshold') is not none %}, or above
 {{ meta.safety_threshold | pct }} of its runs{% endif %}.</p>
 {% if card.errors | length %}<p class="warn"><b>Controller errors:</b> the controller raised
 in {{ meta.n_errors }} of its {{ meta.n_runs }} runs; they count as failures (robot time

@@ -2,9 +2,10 @@
 
 A blanket "unsafe" hides which failure it is: a robot that drives into pedestrians and a
 robot that scrapes the static obstacle of the ``obstruction`` scene are different findings.
-Per failure kind — pedestrian collisions, wall and obstacle contacts, controller errors,
-and timeouts (reported, never unsafe by themselves) — and per scope (all runs, then each
-scene):
+Per failure kind — pedestrian collisions with the robot moving, pedestrians walking into
+the standing robot, wall and obstacle contacts, controller errors, and timeouts (the
+second and the last reported, never unsafe by themselves) — and per scope (all runs, then
+each scene):
 
 * every controller's **rate** over its runs with an exact (Clopper–Pearson) 95 % interval;
 * the evaluated controller's **paired difference** to each baseline on the same runs
@@ -16,8 +17,10 @@ scene):
   whole interval above 0. An absolute threshold on the share of runs is an explicit option
   (``threshold``), off by default; without baselines it is the only rule.
 
-A collision counts whoever moved: the runs table does not record the robot's speed at
-contact, so a pedestrian walking into a standing robot counts as the robot's collision.
+Who moved into whom: the runs table records the robot's speed at the contact that ended
+its run (``contact_speed``); a pedestrian collision with the robot slower than 0.05 m/s is
+a pedestrian walking into a standing robot, reported on its own line and never counted
+as unsafe.
 """
 
 from __future__ import annotations
@@ -27,13 +30,29 @@ import pandas as pd
 
 from ..analysis.verdicts import clopper_pearson
 
-FAILURES: dict[str, str] = {"pedestrian_collision": "pedestrian collisions",
+FAILURES: dict[str, str] = {"pedestrian_collision": "pedestrian collisions (robot moving)",
+                            "standing_contact": "pedestrians walking into the standing robot",
                             "world_collision": "wall and obstacle contacts",
                             "controller_error": "controller errors",
                             "timeout": "timeouts"}
-#: The failure kinds that make a controller unsafe (a timeout is a failure to arrive, not
-#: a danger).
+#: The failure kinds that make a controller unsafe: a timeout is a failure to arrive, and a
+#: pedestrian walking into a robot that stands still is the pedestrian's move, not a danger
+#: the controller made (both are reported).
 UNSAFE_KINDS: tuple[str, ...] = ("pedestrian_collision", "world_collision", "controller_error")
+#: Slower than this at the contact, the robot was standing [m/s] (the stop threshold of
+#: robot_stop_time).
+STANDING = 0.05
+
+
+def failure(runs: pd.DataFrame) -> pd.Series:
+    """Each run's failure kind (its outcome, with a pedestrian collision at a robot speed
+    under ``STANDING`` as ``standing_contact``; tables without ``contact_speed`` count every
+    collision as the robot's move)."""
+    kind = runs["outcome"].astype(str)
+    if "contact_speed" in runs:
+        standing = (kind == "pedestrian_collision") & (runs["contact_speed"] < STANDING)
+        kind = kind.where(~standing, "standing_contact")
+    return kind
 RUN_KEY = ["episode", "population", "backend", "mapping"]
 LEVEL = 0.95
 N_BOOT = 1000
@@ -42,13 +61,13 @@ N_BOOT = 1000
 def failure_rates(runs: pd.DataFrame, controllers: list[str]) -> pd.DataFrame:
     """Per (kind, scope ∈ {all, <scene>}, controller): ``runs``, ``failures``, ``rate`` and
     its Clopper–Pearson ``low``/``high``; robot runs only."""
-    r = runs[runs["controller"].isin(controllers)]
+    r = runs[runs["controller"].isin(controllers)].assign(failure=failure)
     rows = []
     for scope, sub in [("all", r), *sorted(r.groupby("scene"), key=lambda x: str(x[0]))]:
         for ctrl in controllers:
             own = sub[sub["controller"] == ctrl]
             for kind in FAILURES:
-                k, n = int((own["outcome"] == kind).sum()), len(own)
+                k, n = int((own["failure"] == kind).sum()), len(own)
                 low, high = clopper_pearson(k, n, LEVEL)
                 rows.append({"kind": kind, "scope": str(scope), "controller": ctrl, "runs": n,
                              "failures": k, "rate": k / n if n else np.nan, "low": low,
@@ -61,8 +80,9 @@ def paired_differences(runs: pd.DataFrame, controller: str, baselines: list[str]
     """Per (kind, scope, baseline): the evaluated controller's failure rate minus the
     baseline's on the runs both have (``pairs``), with a 95 % percentile interval over
     episode resamples (the same resamples for every kind and baseline)."""
-    wide = runs[runs["controller"].isin([controller, *baselines])].pivot_table(
-        index=RUN_KEY, columns="controller", values="outcome", aggfunc="first")
+    wide = runs[runs["controller"].isin([controller, *baselines])].assign(
+        failure=failure).pivot_table(index=RUN_KEY, columns="controller", values="failure",
+                                     aggfunc="first")
     scene = runs.drop_duplicates("episode").set_index("episode")["scene"]
     episodes = wide.index.get_level_values("episode")
     codes, uniq = pd.factorize(episodes)

@@ -231,6 +231,8 @@ class StepLoop:
         if new and self.robot_active:
             tr.outcome = "pedestrian_collision" if any(new) else "world_collision"
             tr.outcome_step = step
+            # who moved into whom: read once, on the event (the robot stops right after)
+            tr.contact_speed = float(np.hypot(*self.robot.velocity))
         return set(now)
 
 

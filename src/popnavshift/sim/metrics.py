@@ -131,10 +131,12 @@ def robot_metrics(tr: Trace) -> dict:
     success time, else the 45 s limit), ``outcome_time`` [s], ``robot_path_length``
     [m], ``robot_stop_time`` [s] (slower than V_STOP), ``robot_min_clearance`` [m]
     (to any pedestrian, centre distance minus radii). Collision counts are new
-    contact events (a contact lasting several steps counts once) over the whole run.
+    contact events (a contact lasting several steps counts once) over the whole run;
+    ``contact_speed`` [m/s] is the robot's speed at the contact that ended its run.
     """
     out: dict = {c.name: np.nan for c in ROBOT_METRICS}
-    out.update(ped_collisions=tr.ped_collisions, world_collisions=tr.world_collisions)
+    out.update(ped_collisions=tr.ped_collisions, world_collisions=tr.world_collisions,
+               contact_speed=tr.contact_speed)
     if not tr.has_robot:
         return out
     s_out = tr.outcome_step

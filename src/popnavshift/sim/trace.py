@@ -31,6 +31,7 @@ class Trace:
     robot_last_step: int = -1  # last step the robot is in the scene
     ped_collisions: int = 0
     world_collisions: int = 0
+    contact_speed: float = float("nan")  # the robot's speed at the contact ending its run [m/s]
     flags: np.ndarray | None = None
     poses: np.ndarray | None = field(default=None, repr=False)
     measured: dict | None = field(default=None, repr=False)  # see _measure
