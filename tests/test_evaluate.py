@@ -239,3 +239,21 @@ def test_a_study_that_adds_the_evaluated_controller_reuses_its_runs(tmp_path):
     report = run_study(study_from_dict(grown), tmp_path / "lean", workers=1,
                        show_progress=False)
     assert report.planned == 12 and report.executed == 0 and report.reused == 12
+
+
+def test_a_controller_written_from_scratch_on_a_bare_behavior_moves(first_and_second):
+    """The docs' from-scratch example (examples/go_to_goal) evaluated on the quick study,
+    reusing the baselines the first fixture built: the robot reaches its goal."""
+    root, first, _ = first_and_second
+    assert first.returncode == 0, first.stderr
+    scratch = Path(__file__).resolve().parents[1] / "examples" / "go_to_goal"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(scratch), *sys.path])}
+    proc = subprocess.run([sys.executable, "-c", MAIN, "evaluate",
+                           "go_to_goal.controller:GoToGoal", "--study", "quick", "--study-dir",
+                           "study-quick", "--n-boot", "100"], capture_output=True, text=True,
+                          cwd=root, env=env, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    card = next((root / "study-quick" / "evaluate").glob("go_to_goal*"))
+    runs = pd.read_parquet(card / "runs.parquet")
+    assert len(runs) == 40 and (runs["outcome"] == "success").mean() > 0.3
+    assert json.loads((card / "card.json").read_text())["verdict"]["label"]
