@@ -246,3 +246,16 @@ def test_describe_lists_every_parameter():
     assert CONTROLLERS.make("robot_orca").describe()["time_horizon"] == 2.0
     assert CONTROLLERS.make("early_yield").describe()["conflict_horizon"] == 4.5
     assert CONTROLLERS.make("reactive").describe()["buffer"] == 0.04
+
+
+def test_a_behavior_without_a_geometric_state_gets_no_sensing():
+    """navground's Dummy has no geometric state: bounded sensing would only make navground
+    warn once per run (2,633 times over a paper-study card) that it cannot fill it."""
+    from navground import core
+
+    from popnavshift.sim.world import robot_sensing
+
+    kin = core.kinematics.TwoWheelsDifferentialDriveKinematics(max_speed=1.0, wheel_axis=0.5)
+    assert robot_sensing(core.behaviors.DummyBehavior(kin, 0.35)) == []
+    assert len(robot_sensing(core.behaviors.HLBehavior(kin, 0.35))) == 1
+    assert robot_sensing(core.behaviors.HLBehavior(kin, 0.35), wanted=False) == []

@@ -35,11 +35,11 @@ from .constants import (
     PED_RADIUS,
     ROBOT_GOAL_TOLERANCE,
     ROBOT_RADIUS,
-    ROBOT_SENSING_RANGE,
     WHEEL_AXIS,
 )
 from .controllers import ControllerFactory
 from .run import simulate
+from .world import robot_sensing
 
 ROBOT_SPEEDS = (0.6, 1.0)  # [m/s] the cell speeds of SPEC §6
 _CMD_TOL = 1e-4  # [m/s], [rad/s] float32 slack on feasibility
@@ -58,8 +58,8 @@ def robot_agent(factory: ControllerFactory, start: Sequence[float], goal: Sequen
         max_speed=wheel_max if wheel_max is not None else speed, wheel_axis=WHEEL_AXIS)
     kin.max_forward_speed = speed
     behavior = factory.build(kin, ROBOT_RADIUS, speed)
-    agent = sim.Agent(ROBOT_RADIUS, behavior, kinematics=kin, state_estimations=[
-        sim.state_estimations.BoundedStateEstimation(range=ROBOT_SENSING_RANGE)])
+    agent = sim.Agent(ROBOT_RADIUS, behavior, kinematics=kin,
+                      state_estimations=robot_sensing(behavior))
     agent.id = 0
     heading = math.atan2(goal[1] - start[1], goal[0] - start[0])
     agent.pose = core.Pose2(tuple(start), heading)

@@ -75,9 +75,8 @@ def _make_robot(spec: EpisodeSpec, controller) -> tuple[sim.Agent, core.Behavior
         max_speed=speed, wheel_axis=WHEEL_AXIS
     )
     behavior = controller.build(kin, ROBOT_RADIUS, speed)
-    sensing = []  # a loop driver without it senses through the loop (controllers.LoopDriver)
-    if getattr(controller, "sensing", True):
-        sensing.append(sim.state_estimations.BoundedStateEstimation(range=ROBOT_SENSING_RANGE))
+    # a loop driver without sensing senses through the loop (controllers.LoopDriver)
+    sensing = robot_sensing(behavior, getattr(controller, "sensing", True))
     robot = sim.Agent(
         radius=ROBOT_RADIUS, behavior=behavior, kinematics=kin, state_estimations=sensing
     )
@@ -89,6 +88,15 @@ def _make_robot(spec: EpisodeSpec, controller) -> tuple[sim.Agent, core.Behavior
     robot.type = "robot"
     behavior.target = core.Target.Point((gx, gy), ROBOT_GOAL_TOLERANCE)
     return robot, behavior
+
+
+def robot_sensing(behavior: core.Behavior, wanted: bool = True) -> list:
+    """The robot's state estimation: bounded sensing within ``ROBOT_SENSING_RANGE`` — unless
+    not ``wanted``, or the behaviour has no geometric state to fill (navground's Dummy):
+    attaching it then would only make navground warn once per run that it cannot."""
+    if not wanted or not isinstance(behavior.environment_state, core.GeometricState):
+        return []
+    return [sim.state_estimations.BoundedStateEstimation(range=ROBOT_SENSING_RANGE)]
 
 
 def remove_agent(agent: sim.Agent, slot: int) -> None:
