@@ -66,7 +66,10 @@ def rerun(folder: Path, *extra: str):
 
 # ---- 1. rich markup: user and error text is shown verbatim ----------------------------
 def test_episodes_lists_the_grid():
-    proc = cli("episodes", "--scene", "head_on")
+    # a wide terminal shows every column, the bracketed unit verbatim (not as markup)
+    proc = subprocess.run([sys.executable, "-m", "popnavshift", "episodes", "--scene", "head_on"],
+                          capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "COLUMNS": "120"})
     assert proc.returncode == 0, proc.stderr
     assert "[/m²]" in proc.stderr and "episodes shown" in proc.stderr
 
