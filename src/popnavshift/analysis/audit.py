@@ -219,24 +219,24 @@ def directions(personas: pd.DataFrame, values: pd.DataFrame, *, rng: np.random.G
     aligned with ``personas``): ``rho``, its 95% percentile bootstrap interval over
     personas, and the :func:`direction_outcome`. A check whose field or target is absent
     is left out."""
-    n = len(personas)
-    draws = rng.integers(0, n, (n_boot, n))
     rows = []
     for e in expectations:
         if e.field not in personas.columns or e.target not in values.columns:
             continue
         vocab = {v: i for i, v in enumerate(vocabulary(e.field))}
-        x = personas[e.field].map(vocab).to_numpy(float)
+        x = np.array([vocab.get(v, np.nan) for v in personas[e.field].astype(object)], float)
         y = values[e.target].to_numpy(float)
         ok = np.isfinite(x) & np.isfinite(y)
-        rho = float(_spearman(x[ok], y[ok]))
+        x, y = x[ok], y[ok]
+        rho = float(_spearman(x, y)) if len(x) > 1 else np.nan
+        draws = rng.integers(0, max(len(x), 1), (n_boot, len(x)))
         boot = _spearman(x[draws], y[draws])
         boot = boot[np.isfinite(boot)]
         low, high = np.quantile(boot, [0.025, 0.975]) if len(boot) else (np.nan, np.nan)
         if not np.isfinite(rho):
             low = high = np.nan
         rows.append({"field": e.field, "target": e.target, "expected": "+" if e.sign > 0 else "−",
-                     "why": e.why, "n": int(ok.sum()), "rho": rho, "ci_low": float(low),
+                     "why": e.why, "n": len(x), "rho": rho, "ci_low": float(low),
                      "ci_high": float(high), "outcome": direction_outcome(e.sign, low, high)})
     return pd.DataFrame(rows)
 

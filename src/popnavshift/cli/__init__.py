@@ -49,6 +49,8 @@ def main() -> None:
     if result == 130:  # typer returns 130 when Ctrl-C interrupted a command
         console.print(INTERRUPTED)
         sys.exit(130)
+    if isinstance(result, int) and result:  # a command's typer.Exit(code), returned here
+        sys.exit(result)
 
 
 def fail(message: str) -> NoReturn:

@@ -35,28 +35,30 @@ def audit(
         "--strict", help="Exit with code 1 when a respondent is not usable (for scripts, CI).")
                       ] = False,
 ) -> None:
-    """Audit the probe answers of every respondent of a study: do they follow the persona?
+    """Audit the probe answers of every respondent: do they follow the persona?
 
-    Computed from the study's own tables (responses, responses_alt when the study has a
-    second respondent, personas, profiles), nothing is asked again:
+    From the study's own tables (responses, responses_alt for a second
+    respondent, personas, profiles); nothing is asked again.
 
     \b
-    - spread: per probe and block item, the levels used, the entropy (bits) and the modal
-      answer's share; an item using at most 2 of its 5 levels, or a probe answered with
-      one action throughout, is stuck;
-    - persona sensitivity: R² of each answer and motion parameter on the persona fields,
-      against the same R² with the persona rows shuffled (permutation p);
-    - expected directions: e.g. trust_level vs the trust answer, time_pressure vs urgency
-      (Spearman, 95% bootstrap interval);
-    - the matched intervention: the deadline − baseline shift of each item (paired,
-      95% interval);
-    - agreement of the two respondents, when there are two.
+    - spread: per probe and item, levels used, entropy (bits), modal
+      share; an item on at most 2 of its 5 levels, or a probe answered
+      with one action throughout, is stuck;
+    - persona sensitivity: R² of each answer and motion parameter on the
+      persona fields against the same R² with the personas shuffled;
+    - expected directions: e.g. trust_level vs the trust answer,
+      time_pressure vs urgency (Spearman, 95% bootstrap interval);
+    - the matched intervention: deadline − baseline shift per item
+      (paired, 95% interval);
+    - the two respondents' agreement, when there are two.
 
-    Each respondent ends with a verdict: usable; weak (what fails is listed); or not
-    persona-sensitive — its answers carry no more of the persona than a shuffle, and the
-    populations built from them are artifacts. The thresholds are in docs/llm.md.
-    Example: `popnavshift audit study`.
+    Each respondent gets a verdict: usable; weak (what fails is listed);
+    or not persona-sensitive: its answers carry no more of the persona
+    than a shuffle, and the populations built from them are artifacts.
+    Thresholds and reasons: docs/analysis.md §11.
+    Example: popnavshift audit study --strict
     """
+    from ..analysis.audit import ANSWER_TARGETS
     from ..analysis.audit_verdict import MIN_PERMUTATIONS, audit_tables
     from ..engine.respondent_tables import read_respondent_tables
     from ..engine.store import check_study_folder
@@ -64,7 +66,7 @@ def audit(
     if permutations < MIN_PERMUTATIONS:
         raise ConfigError(f"--permutations {permutations}: expected at least "
                           f"{MIN_PERMUTATIONS}, the fewest whose smallest p reaches the "
-                          "Bonferroni level of the 16 answers tested")
+                          f"Bonferroni level of the {ANSWER_TARGETS} answers tested")
     check_study_folder(study_dir)
     personas, respondents = read_respondent_tables(study_dir)
     with console.status("shuffling personas…"):

@@ -75,7 +75,8 @@ def read_respondent_tables(folder: Path) -> tuple[pd.DataFrame, list[RespondentT
     personas = check_table(read_table(folder / "personas.parquet", "personas"), "personas")
     main = main_mapping(folder)
     has_profiles = (folder / "profiles.parquet").exists()
-    profiles = read_table(folder / "profiles.parquet", "profiles") if has_profiles else None
+    profiles = (check_table(read_table(folder / "profiles.parquet", "profiles"), "profiles")
+                if has_profiles else None)
     out = []
     for role, file in (("first", "responses"), ("second", "responses_alt")):
         if not (folder / f"{file}.parquet").exists():
