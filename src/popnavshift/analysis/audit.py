@@ -10,10 +10,10 @@ pairs a persona's ``baseline`` and ``deadline`` rows.
   share, and ``stuck`` (a block item using at most 2 of its 5 levels, a probe answered
   with one action throughout).
 * :func:`sensitivity` — how much of each target the persona fields explain: the R² of a
-  least-squares fit on the one-hot persona fields (every field of
-  :data:`~popnavshift.personas.fields.PERSONA_FIELDS`, a missing value as its own
-  level). A probe's action is its six indicator columns together (the share of its Gini
-  variance explained); the action score is q_a, what the mappings read of the actions.
+  least-squares fit on every field of :data:`~popnavshift.personas.fields.PERSONA_FIELDS`
+  (:func:`persona_design`: an ordered field by its position, a nominal one one-hot). A
+  probe's action is its six indicator columns together (the share of its Gini variance
+  explained); the action score is q_a, what the mappings read of the actions.
   The null permutes the persona rows (same statistic, the answers' own marginals kept);
   p = (1 + #null ≥ observed) / (1 + permutations).
 * :func:`directions` — declared expected directions (:data:`EXPECTATIONS`): Spearman
@@ -91,12 +91,40 @@ def distinct_rows(responses: pd.DataFrame, personas: pd.DataFrame) -> dict[str, 
             "persona_records": len(asked[fields].astype(str).drop_duplicates())}
 
 
+#: Persona fields whose vocabulary has no order (data/matraix_fields.json): one-hot coded.
+NOMINAL_FIELDS: tuple[str, ...] = ("decision_style", "accessibility_needs")
+
+
+def persona_design(personas: pd.DataFrame) -> np.ndarray:
+    """The persona fields as regressors (n × k): an ordered field as its position in its
+    vocabulary in [0, 1] (a missing value at the field's mean, with a missing indicator),
+    a nominal field (:data:`NOMINAL_FIELDS`) one-hot. One column per ordered field keeps
+    the design small enough to test 50 personas (one-hot everything: ~46 columns, whose
+    null R² nears 1 at that size); the cost is that a non-monotone dependence on an
+    ordered field is seen only through its linear trend."""
+    cols = []
+    for f in [f for f in PERSONA_FIELDS if f in personas.columns]:
+        values = personas[f].astype(object)
+        if f in NOMINAL_FIELDS:
+            cols.append(pd.get_dummies(values.astype(str), drop_first=True, dtype=float)
+                        .to_numpy(float))
+            continue
+        vocab = vocabulary(f)
+        x = np.array([vocab.index(v) / (len(vocab) - 1) if v in vocab else np.nan
+                      for v in values], float)
+        missing = np.isnan(x)
+        if missing.all():
+            continue
+        cols.append(np.where(missing, np.nanmean(x), x)[:, None])
+        if missing.any():
+            cols.append(missing[:, None].astype(float))
+    return np.concatenate(cols, axis=1) if cols else np.zeros((len(personas), 0))
+
+
 def persona_basis(personas: pd.DataFrame) -> np.ndarray:
-    """An orthonormal basis (n × r) of the centred one-hot persona fields, rows in the
+    """An orthonormal basis (n × r) of the centred :func:`persona_design`, rows in the
     order of ``personas``; the fitted values of a centred target are its projection on it."""
-    fields = [f for f in PERSONA_FIELDS if f in personas.columns]
-    dummies = pd.get_dummies(personas[fields].astype(str), drop_first=True, dtype=float)
-    x = dummies.to_numpy(float)
+    x = persona_design(personas)
     x = x - x.mean(axis=0)
     if x.shape[1] == 0:
         return np.zeros((len(personas), 0))
@@ -139,7 +167,8 @@ def sensitivity(targets: list[Target], basis: np.ndarray, *, rng: np.random.Gene
     """R² of each target on the persona fields (``basis``: :func:`persona_basis`, rows
     aligned with the targets') against ``n_perm`` persona-row permutations.
 
-    Returns one row per target: ``target``, ``kind``, ``n``, ``r2`` (NaN for a constant
+    Returns one row per target: ``target``, ``kind``, ``n``, ``columns`` (the basis's
+    rank), ``r2`` (NaN for a constant
     target), ``null_mean``, ``null_q95``, ``excess`` (r2 − null_mean) and ``p_value``.
     """
     y = np.concatenate([t.values for t in targets], axis=1)
@@ -160,6 +189,7 @@ def sensitivity(targets: list[Target], basis: np.ndarray, *, rng: np.random.Gene
     above = (null >= observed - 1e-12).sum(axis=0)
     return pd.DataFrame({
         "target": [t.name for t in targets], "kind": [t.kind for t in targets], "n": n,
+        "columns": basis.shape[1],
         "r2": observed, "null_mean": null.mean(axis=0), "null_q95": np.quantile(null, 0.95, 0),
         "excess": observed - null.mean(axis=0),
         "p_value": np.where(constant, np.nan, (1 + above) / (1 + n_perm))})

@@ -22,6 +22,10 @@ The statistics are in :mod:`.audit`; the thresholds are here, each with its reas
   that is flat or reversed, or a matched intervention that does not raise urgency by
   :data:`MIN_URGENCY_SHIFT` (its interval above 0) or reverses a declared direction;
 * **usable** — nothing fails.
+
+With so few personas that a shuffle alone explains :data:`MAX_NULL_R2` of any answer,
+a respondent without a persona-sensitive answer reads **weak** ("too few personas"),
+not "not persona-sensitive": the test could not have seen it.
 """
 
 from __future__ import annotations
@@ -54,6 +58,9 @@ ALPHA = 0.05  # family-wise level of the sensitivity tests, per family
 MIN_EXCESS_R2 = 0.05  # R² the persona fields must explain beyond the shuffled null's mean
 MIN_DISTINCT_SHARE = 0.5  # distinct answer rows per distinct persona record, at least
 MIN_URGENCY_SHIFT = LEVEL / 2  # deadline − baseline urgency: half a level, at least
+#: below this many personas per persona-field column the test cannot see a dependence:
+#: the shuffled null's expected R², columns / (n − 1), would reach this share
+MAX_NULL_R2 = 0.5
 #: the fewest persona shuffles whose smallest p, 1 / (1 + n), reaches the Bonferroni level
 #: of the larger family (16 answers)
 MIN_PERMUTATIONS = math.ceil(ANSWER_TARGETS / ALPHA) - 1
@@ -105,8 +112,16 @@ def failures(spread_: pd.DataFrame, sens: pd.DataFrame, dirs: pd.DataFrame,
 
 def verdict(sens: pd.DataFrame, fails: list[str]) -> tuple[str, list[str]]:
     """(verdict, reasons): ``not persona-sensitive`` when no answer is, else ``weak``
-    with ``fails``, else ``usable``."""
+    with ``fails``, else ``usable``; ``weak`` too, saying so, when no answer is and the
+    personas are too few for the test (:data:`MAX_NULL_R2`)."""
     answers = sens[sens["family"] == "answer"]
+    n, columns = int(answers["n"].iloc[0]), int(answers["columns"].iloc[0])
+    if not answers["sensitive"].any() and answers["r2"].notna().any() and (
+            columns >= MAX_NULL_R2 * (n - 1)):
+        return WEAK, [f"too few personas to test persona sensitivity: {n} personas for "
+                      f"{columns} persona-field columns (a shuffle alone explains about "
+                      f"{columns / max(n - 1, 1):.0%} of any answer; ask at least "
+                      f"{math.floor(columns / MAX_NULL_R2) + 2})", *fails]
     if not answers["sensitive"].any():
         best = answers["excess"].max()
         why = (f"no answer follows the persona beyond a persona-shuffled null (0 of "

@@ -59,7 +59,7 @@ def answer_flag(tables: dict[str, pd.DataFrame]) -> dict[str, Any] | None:
 
 
 METHOD = (f"Computed from the study's own answer tables, nothing asked again. An answer or "
-          f"motion parameter is persona-sensitive when its R² on the one-hot persona fields "
+          f"motion parameter is persona-sensitive when its R² on the persona fields "
           f"beats the same R² with the persona rows shuffled at p ≤ {ALPHA:g} (Bonferroni "
           f"within answers and within parameters) and exceeds the shuffles' mean by at least "
           f"{MIN_EXCESS_R2:g}. Not persona-sensitive: no answer is. Weak: a stuck answer (an "
@@ -147,7 +147,7 @@ def _manipulation(s: Section, m: pd.DataFrame | None) -> None:
 def _agreement(s: Section, g: pd.DataFrame | None) -> None:
     if g is None or g.empty:
         return
-    stat = {"action": "kappa", "item": "rho", "parameter": "r"}
+    stat = {"action": "κ", "item": "ρ", "parameter": "r"}
     rows = [[r.target, r.kind, r.n, pct(getattr(r, "agree", None)),
              pct(getattr(r, "within_one", None)),
              f"{stat[r.kind]} {fmt(getattr(r, stat[r.kind], None))}"] for r in g.itertuples()]
