@@ -138,8 +138,9 @@ def audit_respondent(personas: pd.DataFrame, r: RespondentTables, *, rng_seed: i
     ``manipulation``, ``verdict``), each with a ``respondent`` column (its role).
 
     The persona population is the respondent's baseline answers; its motion parameters
-    are the profiles' baseline rows of the same personas (left out when a persona has
-    none). ``rng_seed`` seeds the permutations and bootstraps (fresh generators)."""
+    are the profiles' baseline rows of the same personas (all seven are left out when
+    one of these personas has no profile). ``rng_seed`` seeds the permutations and
+    bootstraps (fresh generators)."""
     base = baseline(r.responses)
     who = personas.set_index("persona_id").reindex(base["persona_id"]).reset_index()
     prof = pd.DataFrame()
