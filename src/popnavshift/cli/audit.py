@@ -111,7 +111,7 @@ def _print_respondent(t: dict[str, pd.DataFrame], r) -> None:
     params = sens[sens["kind"] == "parameter"]
     if not params.empty:
         p = Table("motion parameter", "R²", "null", "p", "sensitive",
-                  title="motion parameters (the study's main mapping)")
+                  title="motion parameters of its profiles")
         for name, x in params.iterrows():
             p.add_row(str(name), _num(x.r2), _num(x.null_mean), _num(x.p_value, "{:.3f}"),
                       "yes" if x.sensitive else "[red]no[/]")
