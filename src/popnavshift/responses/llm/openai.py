@@ -16,6 +16,7 @@ from typing import Any
 
 import httpx
 
+from ...hashing import digest
 from ...redact import redact
 from ..prompt import SYSTEM_PROMPT, build_prompt
 from ..schema import response_json_schema
@@ -108,6 +109,27 @@ class OpenAIRespondent(LLMRespondent):
         return _ChatSession(self.endpoint, key, self.timeout, self.max_concurrency,
                             self.base_url.rstrip("/") + "/models")
 
+    def _ask_identity(self) -> str | None:
+        session = self._connect(self._api_key())
+        try:
+            return session.identity(self.model)
+        finally:
+            session.close()
+
+
+def listing_identity(listing: Any, model: str) -> str | None:
+    """A fingerprint of the model a ``GET /models`` listing says is served as ``model``:
+    its entry (the one whose id is ``model``, else the only one: llama.cpp serves one
+    model under its file name or alias) without ``created`` (llama.cpp puts the time of
+    the request there). llama.cpp's entry carries the file's size and parameter count,
+    so another file behind the same alias is another identity. None when the listing
+    names neither."""
+    data = listing.get("data") if isinstance(listing, dict) else None
+    entries = [e for e in data if isinstance(e, dict)] if isinstance(data, list) else []
+    match = [e for e in entries if e.get("id") == model] or (entries if len(entries) == 1
+                                                             else [])
+    return digest({k: v for k, v in match[0].items() if k != "created"}) if match else None
+
 
 class _ChatSession:
     """One pooled httpx client shared by the worker threads (httpx.Client is thread-safe)."""
@@ -164,6 +186,25 @@ class _ChatSession:
             return
         raise NotReady(f"GET /models: HTTP {resp.status_code}: {_error_message(resp)}",
                        fatal=resp.status_code in (401, 403))
+
+    def identity(self, model: str) -> str | None:
+        """:func:`listing_identity` of ``GET {base_url}/models`` (None without that route
+        or a listing); raises NotReady when the server does not answer (fatal: 401/403)."""
+        try:
+            resp = self._client.get(self.models_url)
+        except httpx.TimeoutException:
+            raise NotReady(f"no reply within {self.timeout:g} s") from None
+        except httpx.TransportError as exc:
+            raise NotReady(f"connection error ({type(exc).__name__})") from None
+        if resp.status_code in (404, 405, 501):
+            return None
+        if resp.status_code >= 400:
+            raise NotReady(f"GET /models: HTTP {resp.status_code}: {_error_message(resp)}",
+                           fatal=resp.status_code in (401, 403))
+        try:
+            return listing_identity(resp.json(), model)
+        except ValueError:
+            return None
 
     def close(self) -> None:
         self._client.close()

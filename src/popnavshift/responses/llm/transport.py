@@ -19,7 +19,9 @@ Two loops, kept apart (SPEC §3):
 :class:`LLMRespondent` runs both for many records on a thread pool of
 ``max_concurrency`` workers behind a shared :class:`RateLimiter`, with the
 :class:`~.cache.ResponseCache` in front: a valid answer is stored under the hash
-of the record's *first* request, so a second identical run makes no call.
+of the record's *first* request (and of the served model's identity, when the server
+names it: one cheap call before the cache is read), so a second identical run makes no
+request.
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ from ..probes import PROBE_SET_HASH
 from ..respondent import Answer, ProbeRequest, Progress, Respondent
 from ..schema import parse_answer
 from .cache import CacheStats, ResponseCache, request_key
-from .readiness import Breaker, wait_until_ready
+from .readiness import Breaker, NotReady, wait_until_ready
 from .retries import (
     RateLimiter,
     RetryPolicy,
@@ -124,6 +126,7 @@ class LLMRespondent(Respondent):
         self.ready_timeout = ready_timeout
         self.max_consecutive_failures = max_consecutive_failures
         self.cache_stats: CacheStats | None = None  # counts of the last answer_all
+        self._served_identity: str | None = None  # of the last answer_all's server
 
     @property
     def model(self) -> str:
@@ -193,12 +196,13 @@ class LLMRespondent(Respondent):
         """
         self.validate()
         tick = progress or (lambda n: None)
-        keys = [self._key(self._body(r.persona, ())) for r in requests]
         answers: dict[int, Answer] = {}
         todo: dict[str, int] = {}  # request hash → the record that asks it
         cache = ResponseCache(self.cache_path) if self.cache_path is not None else None
         self.cache_stats = None
         try:
+            self._served_identity = self._identity(cache)
+            keys = [self._key(self._body(r.persona, ())) for r in requests]
             for i, (req, key) in enumerate(zip(requests, keys, strict=True)):
                 if key in todo:
                     continue
@@ -261,7 +265,39 @@ class LLMRespondent(Respondent):
             )
 
     def _key(self, body: dict) -> str:
-        return request_key(self.endpoint, self.model, body, self.replicate)
+        return request_key(self.endpoint, self.model, body, self.replicate,
+                           self._served_identity)
+
+    def _ask_identity(self) -> str | None:
+        """The identity of the model the server serves, asked before the cache is read;
+        None when the server does not say; raises NotReady (or MissingKeyError) when it
+        cannot be asked. This base names none."""
+        return None
+
+    def _identity(self, cache: ResponseCache | None) -> str | None:
+        """The served model's identity for the cache keys (:meth:`_ask_identity`),
+        remembered in the cache; the remembered one when the server cannot be asked (no
+        key, not reachable, loading), so a filled cache replays offline. A rejected key
+        stops the run."""
+        known = cache.identity(self.endpoint, self.model) if cache is not None else None
+        try:
+            found = self._ask_identity()
+        except MissingKeyError:
+            return known
+        except NotReady as exc:
+            if exc.fatal:
+                raise TransportError(f"{self.name} server {self.endpoint}: {exc.reason}",
+                                     hint="check the API key") from None
+            log.info("%s: cannot ask %s which model it serves (%s)", self.name, self.endpoint,
+                     exc.reason)
+            return known
+        if found is not None and cache is not None:
+            if known not in (None, found):
+                log.warning("%s %s at %s: the server now serves another model; answers "
+                            "cached from the former are not used", self.name, self.model,
+                            self.endpoint)
+            cache.remember_identity(self.endpoint, self.model, found)
+        return found
 
     def _from_cache(
         self, req: ProbeRequest, key: str, cache: ResponseCache | None
