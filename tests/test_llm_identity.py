@@ -11,7 +11,7 @@ import pytest
 from llm_server import Reply, make_requests, serve
 from popnavshift.errors import TransportError
 from popnavshift.responses.llm import OpenAIRespondent
-from popnavshift.responses.llm.openai import listing_identity
+from popnavshift.responses.llm.identity import listing_identity
 
 
 def llama_listing(size: int, created: int = 0) -> Reply:

@@ -16,10 +16,10 @@ from typing import Any
 
 import httpx
 
-from ...hashing import digest
 from ...redact import redact
 from ..prompt import SYSTEM_PROMPT, build_prompt
 from ..schema import response_json_schema
+from .identity import listing_identity
 from .readiness import NotReady
 from .retries import Reply, RetryableError, check_status
 from .transport import REASK, LLMRespondent, check_setting, env_key, is_http_url
@@ -115,20 +115,6 @@ class OpenAIRespondent(LLMRespondent):
             return session.identity(self.model)
         finally:
             session.close()
-
-
-def listing_identity(listing: Any, model: str) -> str | None:
-    """A fingerprint of the model a ``GET /models`` listing says is served as ``model``:
-    its entry (the one whose id is ``model``, else the only one: llama.cpp serves one
-    model under its file name or alias) without ``created`` (llama.cpp puts the time of
-    the request there). llama.cpp's entry carries the file's size and parameter count,
-    so another file behind the same alias is another identity. None when the listing
-    names neither."""
-    data = listing.get("data") if isinstance(listing, dict) else None
-    entries = [e for e in data if isinstance(e, dict)] if isinstance(data, list) else []
-    match = [e for e in entries if e.get("id") == model] or (entries if len(entries) == 1
-                                                             else [])
-    return digest({k: v for k, v in match[0].items() if k != "created"}) if match else None
 
 
 class _ChatSession:

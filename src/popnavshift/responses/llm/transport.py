@@ -44,7 +44,8 @@ from ..probes import PROBE_SET_HASH
 from ..respondent import Answer, ProbeRequest, Progress, Respondent
 from ..schema import parse_answer
 from .cache import CacheStats, ResponseCache, request_key
-from .readiness import Breaker, NotReady, wait_until_ready
+from .identity import served_identity
+from .readiness import Breaker, wait_until_ready
 from .retries import (
     RateLimiter,
     RetryPolicy,
@@ -201,7 +202,8 @@ class LLMRespondent(Respondent):
         cache = ResponseCache(self.cache_path) if self.cache_path is not None else None
         self.cache_stats = None
         try:
-            self._served_identity = self._identity(cache)
+            self._served_identity = served_identity(self._ask_identity, cache, self.endpoint,
+                                                    self.model, self.name)
             keys = [self._key(self._body(r.persona, ())) for r in requests]
             for i, (req, key) in enumerate(zip(requests, keys, strict=True)):
                 if key in todo:
@@ -273,31 +275,6 @@ class LLMRespondent(Respondent):
         None when the server does not say; raises NotReady (or MissingKeyError) when it
         cannot be asked. This base names none."""
         return None
-
-    def _identity(self, cache: ResponseCache | None) -> str | None:
-        """The served model's identity for the cache keys (:meth:`_ask_identity`),
-        remembered in the cache; the remembered one when the server cannot be asked (no
-        key, not reachable, loading), so a filled cache replays offline. A rejected key
-        stops the run."""
-        known = cache.identity(self.endpoint, self.model) if cache is not None else None
-        try:
-            found = self._ask_identity()
-        except MissingKeyError:
-            return known
-        except NotReady as exc:
-            if exc.fatal:
-                raise TransportError(f"{self.name} server {self.endpoint}: {exc.reason}",
-                                     hint="check the API key") from None
-            log.info("%s: cannot ask %s which model it serves (%s)", self.name, self.endpoint,
-                     exc.reason)
-            return known
-        if found is not None and cache is not None:
-            if known not in (None, found):
-                log.warning("%s %s at %s: the server now serves another model; answers "
-                            "cached from the former are not used", self.name, self.model,
-                            self.endpoint)
-            cache.remember_identity(self.endpoint, self.model, found)
-        return found
 
     def _from_cache(
         self, req: ProbeRequest, key: str, cache: ResponseCache | None
