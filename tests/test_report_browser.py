@@ -158,8 +158,9 @@ def test_page_loads_without_errors_and_shows_figures_and_tables(page, tmp_path):
     assert len(dom["images"]) == 8  # Table I, Fig. 2–4, τ, trade-off and the null figure
     assert all(i["data"] and i["ok"] and i["shown"] > 300 for i in dom["images"]), dom["images"]
     assert len(dom["tables"]) >= 10 and min(dom["tables"]) >= 1
-    # the answer first, then the populations and the checks before any score
-    assert dom["sections"][:7] == ["answer", "ranks", "replicates", "calibration",
+    # the answer first, then the respondent audit, the populations and the checks before
+    # any score
+    assert dom["sections"][:8] == ["answer", "ranks", "replicates", "calibration", "audit",
                                    "populations", "checks", "summary"]
     assert "NOT a language model" in dom["respondent"]
 

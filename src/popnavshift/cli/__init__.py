@@ -6,7 +6,8 @@ traceback of a user error and shows the log (retries, re-asks). Every text from
 the user or a server is escaped before rich renders it, and redacted
 (:mod:`popnavshift.redact`). Everything else is a bug and shows a traceback.
 Commands live in :mod:`.population` (personas → populations), :mod:`.simulation`
-(episodes, simulate, replay, bench) and :mod:`.study` (plan, run, report).
+(episodes, simulate, replay, bench), :mod:`.study` (plan, run, report) and :mod:`.audit`
+(the respondent audit).
 """
 
 from __future__ import annotations
@@ -18,7 +19,14 @@ import typer
 
 from ..errors import PopNavShiftError
 from ..progress import console
-from . import data, evaluate, population, simulation, study  # noqa: F401  (register the commands)
+from . import (  # noqa: F401  (register the commands)
+    audit,
+    data,
+    evaluate,
+    population,
+    simulation,
+    study,
+)
 from .app import STATE, app, say
 
 INTERRUPTED = "[yellow]interrupted[/]: finished work is kept; run the same command to resume"

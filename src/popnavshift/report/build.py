@@ -1,11 +1,11 @@
 """Stage 9: a study folder → every table, figure and replay of the report, then the page.
 
 ``build_report(folder)`` reads the study (:mod:`popnavshift.engine.folder`), analyses
-its main grid, its evidence (the answer: rates against their nulls) and its robustness
-parts (:mod:`popnavshift.analysis`), writes the tables as CSV, draws the figures,
-re-simulates a few illustrative runs as replays (:mod:`.replays`) and renders
-``report/index.html`` (:mod:`.page`). A section that cannot be computed on the study
-given says why on the page instead of failing.
+its main grid, its evidence (the answer: rates against their nulls), its respondents'
+answers (the audit) and its robustness parts (:mod:`popnavshift.analysis`), writes the
+tables as CSV, draws the figures, re-simulates a few illustrative runs as replays
+(:mod:`.replays`) and renders ``report/index.html`` (:mod:`.page`). A section that
+cannot be computed on the study given says why on the page instead of failing.
 """
 
 from __future__ import annotations
@@ -18,10 +18,12 @@ from pathlib import Path
 
 import pandas as pd
 
+from ..analysis.audit_verdict import audit_tables
 from ..analysis.study import analyse
 from ..analysis.study_evidence import evidence_tables
 from ..analysis.study_robustness import robustness_tables
 from ..engine.folder import main_grid, read_study_folder
+from ..engine.respondent_tables import read_respondent_tables
 from ..hashing import digest
 from ..io import write_atomic, write_json, write_text
 from ..version import __version__
@@ -104,6 +106,10 @@ def build_report(folder: Path, *, rng_seed: int = 0, n_boot: int = 1000, replays
     fig3, why = profile_figures(study.folder / "figures", study.populations, out / "figures")
     if why:
         analysis.missing["profiles"] = why
+    if (study.folder / "responses.parquet").exists():
+        step("the respondent audit")
+        analysis.tables.update(audit_tables(*read_respondent_tables(study.folder),
+                                            rng_seed=rng_seed, n_boot=n_boot))
     step("robustness parts")
     robust, robust_missing = robustness_tables(study, rng_seed=rng_seed, n_boot=n_boot)
     analysis.tables.update(robust)

@@ -1,7 +1,8 @@
 """The report page: the sections of an analysed study → one self-contained HTML file.
 
 One Jinja2 template (``templates/report.html.j2``) with autoescaping on renders the
-sections in reading order: the answer first (:mod:`.answer`), then the populations, the
+sections in reading order: the answer first (:mod:`.answer`; under the title, the
+respondent audit's banner, :mod:`.audit_section`), then the populations, the
 checks before any score, the paper's tables and figures (:mod:`.sections`), the
 robustness parts (:mod:`.robustness`), the replays and what produced the report. The page
 has no script.
@@ -17,6 +18,7 @@ from jinja2 import Environment, PackageLoader
 from ..analysis.study import Analysis
 from ..engine.folder import StudyFolder
 from .answer import answer_section, ranks_section
+from .audit_section import answer_flag, audit_banner, audit_section
 from .evidence_sections import calibration_section, replicates_section
 from .robustness import robustness_sections
 from .sections import (
@@ -59,7 +61,7 @@ def render_report(study: StudyFolder, a: Analysis, figs: dict[str, Path], out: P
     sections = [
         answer_section(a.tables, a.missing, figs, out), ranks_section(a.tables),
         replicates_section(a.tables, a.missing, figs, out),
-        calibration_section(a.tables),
+        calibration_section(a.tables), audit_section(a.tables),
         populations_section(study, a.populations, figs, out), checks_section(a), summary_section(a),
         reversals_section(a, figs, out), noise_section(a), outcomes_section(a),
         change_section(a, figs, out), sensitivity_section(a, figs, out),
@@ -70,11 +72,15 @@ def render_report(study: StudyFolder, a: Analysis, figs: dict[str, Path], out: P
         replays_section(a), manifest_section(study, settings)]
     if "profiles" in a.missing and not any(b["kind"] == "figure" for b in sections[0].blocks):
         sections[0].missing = a.missing["profiles"]
+    flag = answer_flag(a.tables)  # a respondent that is not usable: said before any rate
+    if flag:
+        sections[0].blocks.insert(0, flag)
     env = Environment(loader=PackageLoader("popnavshift.report", "templates"), autoescape=True,
                       trim_blocks=True, lstrip_blocks=True)
     cls, note = respondent_note(study.manifest)
     return env.get_template("report.html.j2").render(
         title=f"PopNavShift report — {study.manifest.get('study', study.folder.name)}",
-        respondent_cls=cls, respondent_note=note, selection=a.selection,
+        respondent_cls=cls, respondent_note=note, audit=audit_banner(a.tables),
+        selection=a.selection,
         delays_missing=a.missing.get("delays", ""), sections=sections,
         tables=sorted(a.tables))

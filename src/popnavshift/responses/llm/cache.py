@@ -2,9 +2,10 @@
 
 One row per request in ``responses``, keyed by :func:`request_key`: the sha256 of
 the canonical JSON of the exact request (endpoint, model, body including the
-messages and the schema, replicate index). The API key and the headers never
-enter the key nor the file. Only *valid* answers are stored there; the raw text
-is kept and validated again on every read, so a row that no longer parses (the
+messages and the schema, replicate index) and of the served model's identity when the
+server gives one (``identities`` keeps the last one per endpoint and model). The API
+key and the headers never enter the key nor the file. Only *valid* answers are stored
+there; the raw text is kept and validated again on every read, so a row that no longer parses (the
 schema changed, the file was edited) is a miss, counted in ``stats.invalid`` and
 logged, never served. Invalid replies and transport failures go to a separate
 ``failures`` table that is never read back as an answer.
@@ -59,12 +60,23 @@ CREATE TABLE IF NOT EXISTS failures (
 );
 CREATE INDEX IF NOT EXISTS failures_persona ON failures (persona_id, variant);
 CREATE INDEX IF NOT EXISTS failures_request ON failures (request_hash);
+CREATE TABLE IF NOT EXISTS identities (
+    endpoint TEXT NOT NULL,
+    model TEXT NOT NULL,
+    identity TEXT NOT NULL,
+    seen REAL NOT NULL,
+    PRIMARY KEY (endpoint, model)
+);
 """
 
 
-def request_key(endpoint: str, model: str, body: dict[str, Any], replicate: int = 0) -> str:
-    """sha256 hex of the exact request; never include credentials or headers in ``body``."""
-    return digest({"endpoint": endpoint, "model": model, "body": body, "replicate": replicate})
+def request_key(endpoint: str, model: str, body: dict[str, Any], replicate: int = 0,
+                identity: str | None = None) -> str:
+    """sha256 hex of the exact request and, when the server named it, the identity of the
+    model it serves (so a model swapped behind one URL is a new request); never include
+    credentials or headers in ``body``."""
+    request = {"endpoint": endpoint, "model": model, "body": body, "replicate": replicate}
+    return digest(request if identity is None else {**request, "identity": identity})
 
 
 @dataclass(frozen=True)
@@ -186,6 +198,20 @@ class ResponseCache:
             )
             self._db.commit()
             self.stats.failures += 1
+
+    def identity(self, endpoint: str, model: str) -> str | None:
+        """The identity the server at ``endpoint`` last gave for ``model`` (None: never)."""
+        with self._lock:
+            row = self._db.execute("SELECT identity FROM identities WHERE endpoint = ? AND "
+                                   "model = ?", (endpoint, model)).fetchone()
+        return None if row is None else str(row[0])
+
+    def remember_identity(self, endpoint: str, model: str, identity: str) -> None:
+        """Keep the identity the server gave, for a run that cannot ask it (offline replay)."""
+        with self._lock:
+            self._db.execute("INSERT OR REPLACE INTO identities (endpoint, model, identity, "
+                             "seen) VALUES (?, ?, ?, ?)", (endpoint, model, identity, time.time()))
+            self._db.commit()
 
     def failures(self, persona_id: str | None = None) -> list[dict[str, Any]]:
         """Logged failures, oldest first (optionally for one persona)."""

@@ -19,6 +19,7 @@ import httpx
 from ...redact import redact
 from ..prompt import SYSTEM_PROMPT, build_prompt
 from ..schema import response_json_schema
+from .identity import listing_identity
 from .readiness import NotReady
 from .retries import Reply, RetryableError, check_status
 from .transport import REASK, LLMRespondent, check_setting, env_key, is_http_url
@@ -108,6 +109,13 @@ class OpenAIRespondent(LLMRespondent):
         return _ChatSession(self.endpoint, key, self.timeout, self.max_concurrency,
                             self.base_url.rstrip("/") + "/models")
 
+    def _ask_identity(self) -> str | None:
+        session = self._connect(self._api_key())
+        try:
+            return session.identity(self.model)
+        finally:
+            session.close()
+
 
 class _ChatSession:
     """One pooled httpx client shared by the worker threads (httpx.Client is thread-safe)."""
@@ -164,6 +172,25 @@ class _ChatSession:
             return
         raise NotReady(f"GET /models: HTTP {resp.status_code}: {_error_message(resp)}",
                        fatal=resp.status_code in (401, 403))
+
+    def identity(self, model: str) -> str | None:
+        """:func:`listing_identity` of ``GET {base_url}/models`` (None without that route
+        or a listing); raises NotReady when the server does not answer (fatal: 401/403)."""
+        try:
+            resp = self._client.get(self.models_url)
+        except httpx.TimeoutException:
+            raise NotReady(f"no reply within {self.timeout:g} s") from None
+        except httpx.TransportError as exc:
+            raise NotReady(f"connection error ({type(exc).__name__})") from None
+        if resp.status_code in (404, 405, 501):
+            return None
+        if resp.status_code >= 400:
+            raise NotReady(f"GET /models: HTTP {resp.status_code}: {_error_message(resp)}",
+                           fatal=resp.status_code in (401, 403))
+        try:
+            return listing_identity(resp.json(), model)
+        except ValueError:
+            return None
 
     def close(self) -> None:
         self._client.close()

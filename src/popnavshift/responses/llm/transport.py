@@ -19,7 +19,9 @@ Two loops, kept apart (SPEC §3):
 :class:`LLMRespondent` runs both for many records on a thread pool of
 ``max_concurrency`` workers behind a shared :class:`RateLimiter`, with the
 :class:`~.cache.ResponseCache` in front: a valid answer is stored under the hash
-of the record's *first* request, so a second identical run makes no call.
+of the record's *first* request (and of the served model's identity, when the server
+names it: one cheap call before the cache is read), so a second identical run makes no
+request.
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ from ..probes import PROBE_SET_HASH
 from ..respondent import Answer, ProbeRequest, Progress, Respondent
 from ..schema import parse_answer
 from .cache import CacheStats, ResponseCache, request_key
+from .identity import served_identity
 from .readiness import Breaker, wait_until_ready
 from .retries import (
     RateLimiter,
@@ -124,6 +127,7 @@ class LLMRespondent(Respondent):
         self.ready_timeout = ready_timeout
         self.max_consecutive_failures = max_consecutive_failures
         self.cache_stats: CacheStats | None = None  # counts of the last answer_all
+        self._served_identity: str | None = None  # of the last answer_all's server
 
     @property
     def model(self) -> str:
@@ -193,12 +197,14 @@ class LLMRespondent(Respondent):
         """
         self.validate()
         tick = progress or (lambda n: None)
-        keys = [self._key(self._body(r.persona, ())) for r in requests]
         answers: dict[int, Answer] = {}
         todo: dict[str, int] = {}  # request hash → the record that asks it
         cache = ResponseCache(self.cache_path) if self.cache_path is not None else None
         self.cache_stats = None
         try:
+            self._served_identity = served_identity(self._ask_identity, cache, self.endpoint,
+                                                    self.model, self.name)
+            keys = [self._key(self._body(r.persona, ())) for r in requests]
             for i, (req, key) in enumerate(zip(requests, keys, strict=True)):
                 if key in todo:
                     continue
@@ -261,7 +267,14 @@ class LLMRespondent(Respondent):
             )
 
     def _key(self, body: dict) -> str:
-        return request_key(self.endpoint, self.model, body, self.replicate)
+        return request_key(self.endpoint, self.model, body, self.replicate,
+                           self._served_identity)
+
+    def _ask_identity(self) -> str | None:
+        """The identity of the model the server serves, asked before the cache is read;
+        None when the server does not say; raises NotReady (or MissingKeyError) when it
+        cannot be asked. This base names none."""
+        return None
 
     def _from_cache(
         self, req: ProbeRequest, key: str, cache: ResponseCache | None

@@ -1,0 +1,157 @@
+"""The respondent audit in the report: a banner under the title, a flag at the top of the
+answer when the respondent that built the populations is not usable, and a section with
+the audit's tables (:mod:`popnavshift.analysis.audit_verdict`)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pandas as pd
+
+from ..analysis.audit_verdict import (
+    ALPHA,
+    MIN_DISTINCT_SHARE,
+    MIN_EXCESS_R2,
+    MIN_URGENCY_SHIFT,
+    USABLE,
+)
+from .blocks import Cell, Section, fmt, para, pct, table
+
+ROLE = {"first": "The respondent", "second": "The second respondent"}
+
+
+def _who(r: Any) -> str:
+    return f"{ROLE.get(r.respondent, r.respondent)} ({r.name}, {r.model})"
+
+
+def _figures(r: Any) -> str:
+    shift = "" if pd.isna(r.urgency_shift) else f", deadline urgency shift {r.urgency_shift:+.2f}"
+    return (f"{r.sensitive_answers}/{r.answers} answers and {r.sensitive_parameters}/"
+            f"{r.parameters} motion parameters persona-sensitive, {r.directions_as_expected}/"
+            f"{r.directions} expected directions{shift}")
+
+
+def audit_banner(tables: dict[str, pd.DataFrame]) -> tuple[str, str] | None:
+    """(css class, text) of the banner under the title: every respondent's verdict; a
+    warning when one is not usable; None without an audit."""
+    v = tables.get("audit_verdict")
+    if v is None or v.empty:
+        return None
+    parts = [f"{_who(r)}: {r.verdict.upper()} — " + (r.reasons if r.reasons else _figures(r))
+             for r in v.itertuples()]
+    cls = "note" if (v["verdict"] == USABLE).all() else "warn"
+    return cls, "Respondent audit. " + " ".join(p.rstrip(".") + "." for p in parts)
+
+
+def answer_flag(tables: dict[str, pd.DataFrame]) -> dict[str, Any] | None:
+    """A warning for the top of the answer section when the first respondent (whose
+    answers built the populations every rate compares) is not usable; else None."""
+    v = tables.get("audit_verdict")
+    first = v[v["respondent"] == "first"] if v is not None and not v.empty else None
+    if first is None or first.empty or first["verdict"].iloc[0] == USABLE:
+        return None
+    r = first.iloc[0]
+    return para(f"Read the rates below with care: the respondent whose answers built these "
+                f"populations ({r['name']}, {r['model']}) is {r['verdict'].upper()} by the "
+                f"respondent audit — {r['reasons']}. Every population compared below is built "
+                "from its answers, so a reversal rate measures that respondent, not "
+                "persona-driven behaviour.", "warn")
+
+
+METHOD = (f"Computed from the study's own answer tables, nothing asked again. An answer or "
+          f"motion parameter is persona-sensitive when its R² on the persona fields "
+          f"beats the same R² with the persona rows shuffled at p ≤ {ALPHA:g} (Bonferroni "
+          f"within answers and within parameters) and exceeds the shuffles' mean by at least "
+          f"{MIN_EXCESS_R2:g}. Not persona-sensitive: no answer is. Weak: a stuck answer (an "
+          f"item on ≤ 2 of 5 levels, a probe on one action), a block item, the action score or a "
+          f"motion parameter that is not persona-sensitive (a single probe's action is shown, "
+          f"not required: the mappings read the actions through their score), fewer distinct "
+          f"answer rows than {MIN_DISTINCT_SHARE:.0%} of the distinct persona records, an "
+          f"expected direction whose 95% interval does not "
+          f"exclude 0 on its side, or a deadline shift of urgency below "
+          f"{MIN_URGENCY_SHIFT:+.3f} (half a level) or a declared item moved against its "
+          "direction. Test–retest needs several samples per persona and is not measured.")
+
+
+def audit_section(tables: dict[str, pd.DataFrame]) -> Section:
+    """Verdicts, then per respondent its answers' spread and sensitivity, the expected
+    directions and the matched intervention, then the two respondents' agreement."""
+    s = Section("audit", "Respondent audit: do the answers follow the persona?")
+    v = tables.get("audit_verdict")
+    if v is None or v.empty:
+        s.missing = "the study folder has no responses table"
+        return s
+    s.blocks.append(para(METHOD, "note"))
+    s.blocks.append(table(
+        ["Respondent", "Model", "Personas", "Distinct answer rows", "Distinct persona records",
+         "Figures", "Verdict", "What fails"],
+        [[r.respondent, r.model, r.personas, r.answer_rows, r.persona_records, _figures(r),
+          Cell(r.verdict, "ok" if r.verdict == USABLE else "bad"), r.reasons or "–"]
+         for r in v.itertuples()],
+        caption="Verdict per respondent", csv="tables/audit_verdict.csv"))
+    sens, spread = tables["audit_sensitivity"], tables["audit_spread"]
+    for r in v.itertuples():
+        sp = spread[spread["respondent"] == r.respondent].set_index("column")
+        se = sens[sens["respondent"] == r.respondent]
+        rows = []
+        for x in se.itertuples():
+            spr = sp.loc[x.target] if x.target in sp.index else None
+            rows.append([x.target, x.kind,
+                         "" if spr is None else f"{spr['used']}/{spr['levels']}"
+                         + (" stuck" if spr["stuck"] else ""),
+                         "" if spr is None else fmt(spr["entropy_bits"]),
+                         "" if spr is None else f"{spr['modal']} ({pct(spr['modal_share'])})",
+                         fmt(x.r2), fmt(x.null_mean), fmt(x.excess, "{:+.3f}"),
+                         fmt(x.p_value, "{:.3f}"),
+                         Cell("yes" if x.sensitive else "no", "ok" if x.sensitive else "bad")])
+        s.blocks.append(table(["Answer / parameter", "Kind", "Levels used", "Entropy (bits)",
+                               "Modal (share)", "R²", "Null R²", "Excess", "p", "Sensitive"],
+                              rows, caption=f"{_who(r)}: spread and persona sensitivity",
+                              csv="tables/audit_sensitivity.csv", collapsed=True))
+    _directions(s, tables.get("audit_directions"))
+    _manipulation(s, tables.get("audit_manipulation"))
+    _agreement(s, tables.get("audit_agreement"))
+    return s
+
+
+def _directions(s: Section, d: pd.DataFrame | None) -> None:
+    if d is None or d.empty:
+        return
+    rows = [[r.respondent, f"{r.field} → {r.target}", r.expected, r.why,
+             f"{r.rho:+.2f} [{r.ci_low:+.2f}, {r.ci_high:+.2f}]",
+             Cell(r.outcome, "ok" if r.outcome == "as expected" else "bad")]
+            for r in d.itertuples()]
+    s.blocks.append(table(["Respondent", "Persona field → answer", "Expected", "Why",
+                           "Spearman ρ [95%]", "Outcome"], rows,
+                          caption="Expected directions", csv="tables/audit_directions.csv"))
+
+
+def _manipulation(s: Section, m: pd.DataFrame | None) -> None:
+    if m is None or m.empty:
+        return
+    rows = []
+    for r in m.itertuples():
+        if r.target == "actions":
+            rows.append([r.respondent, "probe actions", "", "", "", pct(r.changed), ""])
+            continue
+        rows.append([r.respondent, r.target, r.expected,
+                     f"{r.shift:+.3f} [{r.ci_low:+.3f}, {r.ci_high:+.3f}]",
+                     f"{pct(r.up)} / {pct(r.down)}", pct(r.changed),
+                     Cell(r.outcome, "bad" if r.outcome in ("flat", "reversed") else "")])
+    s.blocks.append(table(["Respondent", "Answer", "Expected", "Deadline − baseline [95%]",
+                           "Up / down", "Changed", "Outcome"], rows,
+                          caption="Matched intervention: the same personas with time pressure "
+                          "set to Deadline (paired)", csv="tables/audit_manipulation.csv"))
+
+
+def _agreement(s: Section, g: pd.DataFrame | None) -> None:
+    if g is None or g.empty:
+        return
+    stat = {"action": "κ", "item": "ρ", "parameter": "r"}
+    rows = [[r.target, r.kind, r.n, pct(getattr(r, "agree", None)),
+             pct(getattr(r, "within_one", None)),
+             f"{stat[r.kind]} {fmt(getattr(r, stat[r.kind], None))}"] for r in g.itertuples()]
+    s.blocks.append(table(["Answer / parameter", "Kind", "Records", "Agree", "Within one level",
+                           "κ / Spearman ρ / Pearson r"], rows,
+                          caption="Agreement of the two respondents (same persona and variant)",
+                          csv="tables/audit_agreement.csv"))
