@@ -58,7 +58,7 @@ from ..sim.controllers.builtin import BUILTIN_CONTROLLERS
 from ..sim.controllers.registry import controller_id, parse_controller_id
 from ..tables import NO_ROBOT, RUN_KEY
 from ..version import __version__
-from ..viz.replay import render_svg
+from ..viz.replay import render_svg, run_outcome
 from .card import card_tables
 from .card_page import write_card
 
@@ -268,7 +268,7 @@ def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0,
         note = ("The replay reproduces the stored run." if same else
                 f"The replay does NOT reproduce the stored run (it ends in {row['outcome']}).")
         title = f"{card.worst_run['episode']} · {card.worst_run['population']} → {row['outcome']}"
-        svg = render_svg(traj, title=title)
+        svg = render_svg(traj, title=title, outcome=run_outcome(row))
     meta = {"study": ev.study.name, "part": ev.part, "check": ev.check, "reused": ev.reused,
             "executed": ev.executed, "n_runs": ev.counts["controller_runs"],
             "n_errors": ev.counts["controller_errors"],
