@@ -1,7 +1,7 @@
 """The population-robustness card's tables (pure).
 
 Pipeline: ``card_tables(runs, pedestrians, controller, baselines, rng=...)`` →
-:class:`Card` (pure, from :mod:`popnavshift.analysis`) → ``render_png`` and
+:class:`Card` (pure, from :mod:`popnavshift.analysis`) → ``card_figure`` and
 ``render_html`` of :mod:`.card_page` (given the replay SVG of the worst run, drawn
 elsewhere).
 

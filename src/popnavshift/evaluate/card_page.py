@@ -25,10 +25,10 @@ from .verdict import VERDICT_METRICS
 
 
 # ------------------------------------------------------------------------ the figure
-def render_png(card: Card, path: Path) -> Path:
+def card_figure(card: Card):
     """Four panels: the three metrics per population by controller (each in its own style,
     the evaluated one highlighted), and the reversal rates against each baseline with
-    their intervals."""
+    their intervals. A matplotlib Figure."""
     import matplotlib  # lazy: only drawing the card needs matplotlib (slow to import)
 
     matplotlib.use("Agg")
@@ -41,7 +41,14 @@ def render_png(card: Card, path: Path) -> Path:
     axes.flat[0].legend(fontsize=8)
     _reversal_panel(axes.flat[3], card)
     fig.suptitle(f"Population robustness of {card.controller}", fontsize=13)
-    write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
+    return fig
+
+
+def save_png(fig, path: Path, dpi: int = 110) -> Path:
+    """Write ``fig`` to ``path`` as PNG (atomically) and close it."""
+    import matplotlib.pyplot as plt
+
+    write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=dpi))
     plt.close(fig)
     return Path(path)
 
@@ -168,7 +175,7 @@ def _win_rows(card: Card) -> list[dict[str, Any]]:
 
 def write_card(card: Card, meta: dict[str, Any], out: Path, svg: str | None) -> tuple[Path, Path]:
     """``out/card.png`` and ``out/card.html``; returns both paths."""
-    png = render_png(card, Path(out) / "card.png")
+    png = save_png(card_figure(card), Path(out) / "card.png")
     return write_text(render_html(card, meta, png.name, svg), Path(out) / "card.html"), png
 
 

@@ -136,8 +136,7 @@ def compare(controllers: Sequence[str], study: Study, base_folder: Path, *, work
     for c in ids:
         out = Path(base_folder) / EVALUATE_DIR / slug(c)
         ev = evaluate(c, study, base_folder, out, baselines=BASELINES, workers=workers,
-                      show_progress=show_progress,
-                      log=say)
+                      show_progress=show_progress, log=say)
         if card_is_current(out / "card.json", ev):
             say(f"{c}: card reused ({out / 'card.html'})")
         else:

@@ -17,9 +17,9 @@ import numpy as np
 import pandas as pd
 from jinja2 import Environment, select_autoescape
 
-from ..io import write_atomic, write_text
+from ..io import write_text
 from .card import METRIC_LABELS
-from .card_page import population_panel
+from .card_page import population_panel, save_png
 from .compare import COMPARE_METRICS, Comparison
 from .export import write_table
 
@@ -60,9 +60,9 @@ def display_table(table: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def render_png(comparison: Comparison, path: Path) -> Path:
+def compare_figure(comparison: Comparison):
     """Four panels, one per compared metric: its mean per population, each controller in
-    its own style (the same as on every card)."""
+    its own style (the same as on every card). A matplotlib Figure."""
     import matplotlib  # lazy: slow to import
 
     matplotlib.use("Agg")
@@ -75,9 +75,7 @@ def render_png(comparison: Comparison, path: Path) -> Path:
     fig.legend(handles, labels, loc="outside lower center", ncol=min(6, len(labels)),
                fontsize=9)  # outside the panels: it never hides a point
     fig.suptitle("Controllers compared, per population", fontsize=13)
-    write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=100))
-    plt.close(fig)
-    return Path(path)
+    return fig
 
 
 def render_html(comparison: Comparison, png: bytes, page: Path) -> str:
@@ -99,7 +97,7 @@ def write_comparison(comparison: Comparison, page: Path) -> dict[str, Path]:
     shown = display_table(comparison.table)
     for fmt in ("md", "tex"):
         paths[fmt] = write_table(shown, page.with_suffix(f".{fmt}"), fmt)
-    paths["png"] = render_png(comparison, page.with_suffix(".png"))
+    paths["png"] = save_png(compare_figure(comparison), page.with_suffix(".png"), dpi=100)
     paths["html"] = write_text(render_html(comparison, paths["png"].read_bytes(), page), page)
     return paths
 

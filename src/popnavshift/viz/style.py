@@ -16,22 +16,21 @@ from ..hashing import digest
 
 
 class Style(NamedTuple):
-    """A controller's matplotlib colour (hex) and marker."""
+    """A controller's matplotlib colour (lower-case hex, as ``to_hex`` gives) and marker."""
 
     colour: str
     marker: str
 
 
 FIXED: dict[str, Style] = {
-    "reactive": Style("#4C72B0", "o"),
-    "early_yield": Style("#DD8452", "s"),
-    "robot_orca": Style("#55A868", "^"),
+    "reactive": Style("#4c72b0", "o"),
+    "early_yield": Style("#dd8452", "s"),
+    "robot_orca": Style("#55a868", "^"),
     "pooled": Style("#222222", "D"),
-    "none": Style("#8C8C8C", "x"),
 }
 #: colours and markers of any other controller: none of them is a fixed style's colour
-PALETTE: tuple[str, ...] = ("#C44E52", "#8172B3", "#937860", "#DA8BC3", "#CCB974", "#64B5CD",
-                            "#2F4F4F")
+PALETTE: tuple[str, ...] = ("#c44e52", "#8172b3", "#937860", "#da8bc3", "#ccb974", "#64b5cd",
+                            "#2f4f4f")
 MARKERS: tuple[str, ...] = ("v", "P", "X", "h", "<", ">")
 
 
