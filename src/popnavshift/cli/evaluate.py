@@ -68,7 +68,8 @@ def evaluate(
     """Evaluate CONTROLLER under every population of a study, next to the baselines.
 
     Runs only what is not cached (the baseline study's runs and no-robot runs are
-    reused) and writes a one-page robustness card, card.html + card.png.
+    reused) and writes a one-page robustness card, card.html + card.png, with its verdict
+    in card.json and every table it shows as CSV.
 
     Example: popnavshift evaluate my_pkg.controller:MyBehavior --study quick
     """
