@@ -133,8 +133,10 @@ PROBE = """JSON.stringify({
 })"""
 
 
-def test_page_loads_without_errors_and_shows_figures_and_tables(page, tmp_path):
-    browser = DevTools(tmp_path / "profile")
+def load(page: Path, probe: str, profile: Path) -> tuple[dict, list[dict]]:
+    """Open ``page`` in Chromium: the DOM facts ``probe`` (a JS expression giving JSON)
+    returns, and every console message, exception, error or warning logged."""
+    browser = DevTools(profile)
     try:
         target = next(t for t in browser.call("Target.getTargets")["targetInfos"]
                       if t["type"] == "page")
@@ -144,7 +146,7 @@ def test_page_loads_without_errors_and_shows_figures_and_tables(page, tmp_path):
             browser.call(f"{domain}.enable", session)
         browser.call("Page.navigate", session, url=page.as_uri())
         browser.wait_for("Page.loadEventFired")
-        result = browser.call("Runtime.evaluate", session, expression=PROBE, returnByValue=True)
+        result = browser.call("Runtime.evaluate", session, expression=probe, returnByValue=True)
         dom = json.loads(result["result"]["value"])
     finally:
         browser.close()
@@ -153,6 +155,11 @@ def test_page_loads_without_errors_and_shows_figures_and_tables(page, tmp_path):
     problems += [e["params"]["entry"] for e in browser.events
                  if e.get("method") == "Log.entryAdded"
                  and e["params"]["entry"]["level"] in ("error", "warning")]
+    return dom, problems
+
+
+def test_page_loads_without_errors_and_shows_figures_and_tables(page, tmp_path):
+    dom, problems = load(page, PROBE, tmp_path / "profile")
     assert problems == []
     assert dom["scripts"] == 0
     assert len(dom["images"]) == 8  # Table I, Fig. 2–4, τ, trade-off and the null figure
@@ -185,3 +192,36 @@ def test_dump_dom_has_no_console_lines_and_a_screenshot_is_not_blank(page, tmp_p
     keep = os.environ.get("POPNAVSHIFT_SCREENSHOT")  # to look at it: set to a file path
     if keep:
         shutil.copyfile(shot, keep)
+
+
+# ---- the compare page (synthetic tables: no simulation) -----------------------------------
+COMPARE_PROBE = """JSON.stringify({
+  images: Array.from(document.images).map(i => ({ok: i.complete && i.naturalWidth > 0,
+    shown: i.getBoundingClientRect().width})),
+  rows: Array.from(document.querySelectorAll("table tr")).length,
+  scripts: document.scripts.length,
+})"""
+
+
+def test_the_compare_page_loads_without_console_errors(tmp_path):
+    from popnavshift.evaluate.compare import Comparison, compare_table
+    from popnavshift.evaluate.compare_page import write_comparison
+    from popnavshift.evaluate.run import EVALUATE_DIR
+    from synth_study import no_effect, synthetic_study
+
+    ctrls = ("reactive", "HRVO", "<b>odd & name</b>")  # escaped, not markup
+    runs, peds = synthetic_study({"p1": no_effect, "p2": no_effect}, n_cells=4, variants=2,
+                                 controllers=ctrls)
+    verdicts = {c: {"label": "inconclusive", "safety": []} for c in ctrls}
+    verdicts["HRVO"] = {"label": "unsafe", "safety": ["wall and obstacle contacts in 22.5%"]}
+    table, per_pop = compare_table(runs, peds, ctrls, verdicts)
+    cards = {c: tmp_path / EVALUATE_DIR / f"c{i}" / "card.html" for i, c in enumerate(ctrls)}
+    study = study_from_dict(STUDY)
+    paths = write_comparison(Comparison(ctrls, table, per_pop, cards, verdicts, study, tmp_path),
+                             tmp_path / "compare" / "compare.html")
+    dom, problems = load(paths["html"], COMPARE_PROBE, tmp_path / "profile")
+    assert problems == []
+    assert dom["scripts"] == 0 and dom["rows"] == 1 + len(ctrls)
+    assert len(dom["images"]) == 1 and dom["images"][0]["ok"]
+    assert dom["images"][0]["shown"] > 600
+    assert "&lt;b&gt;odd &amp; name&lt;/b&gt;" in paths["html"].read_text()

@@ -68,7 +68,8 @@ def evaluate(
     """Evaluate CONTROLLER under every population of a study, next to the baselines.
 
     Runs only what is not cached (the baseline study's runs and no-robot runs are
-    reused) and writes a one-page robustness card, card.html + card.png.
+    reused) and writes a one-page robustness card, card.html + card.png, with its verdict
+    in card.json and every table it shows as CSV.
 
     Example: popnavshift evaluate my_pkg.controller:MyBehavior --study quick
     """
@@ -94,6 +95,62 @@ def evaluate(
     with console.status("writing the card…"):
         html, png = make_card(ev, n_boot=n_boot, seed=seed, safety_threshold=safety_threshold)
     console.print(f"card → {say(html)}\nfigure → {say(png)}", soft_wrap=True, highlight=False)
+
+
+@app.command()
+def compare(
+    controllers: Annotated[
+        list[str],
+        typer.Argument(help="Controllers to put side by side: any name `evaluate` takes "
+                       "(reactive, early_yield, robot_orca, HRVO, package.module:Class, …)."),
+    ],
+    study: Annotated[
+        str | None,
+        typer.Option("--study", "-s", help="Baseline study: quick, paper or a YAML file "
+                     "(default: the study `make run` wrote into ./study, else quick)."),
+    ] = None,
+    study_dir: Annotated[
+        Path | None,
+        typer.Option("--study-dir", "-d", help="Folder of the study; evaluated controllers' "
+                     "cards in STUDY_DIR/evaluate are reused (default: as for evaluate)."),
+    ] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", "-o", help="The page, FILE.html; FILE.csv, .md, .tex and .png "
+                     "go beside it (default: STUDY_DIR/compare/compare.html)."),
+    ] = None,
+    workers: Annotated[
+        int, typer.Option("--workers", "-w", min=1, max=MAX_WORKERS, help="Worker processes.")
+    ] = 2,
+    n_boot: Annotated[int, typer.Option(min=1, help="Bootstrap resamples of a new card.")] = 1000,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of a new card's bootstrap.")] = 0,
+) -> None:
+    """Put the robustness cards of several controllers side by side: one page, one table.
+
+    A controller without a card in STUDY_DIR/evaluate is evaluated first (cached runs
+    are reused); an existing card is read.
+
+    Example: popnavshift compare reactive early_yield robot_orca HRVO
+    """
+    from ..errors import ConfigError
+    from ..evaluate.compare import compare as run_compare
+    from ..evaluate.compare_page import write_comparison
+    from .app import folder
+
+    check_workers(workers)
+    if out is not None and out.suffix != ".html":
+        raise ConfigError(f"--out must name an .html page, got {str(out)!r}",
+                          hint=f"e.g. --out {out.with_suffix('.html')}")
+    s, default_dir = _baseline_study(study)
+    base = folder(study_dir or default_dir)
+    comparison = run_compare(controllers, s, base, workers=workers, n_boot=n_boot, seed=seed,
+                             log=lambda msg: console.print(say(msg), highlight=False,
+                                                           soft_wrap=True))
+    with console.status("writing the comparison…"):
+        paths = write_comparison(comparison, out or base / "compare" / "compare.html")
+    console.print(f"page → {say(paths['html'])}\ntable → {say(paths['csv'])} "
+                  f"(also {paths['md'].suffix} and {paths['tex'].suffix})", soft_wrap=True,
+                  highlight=False)
 
 
 MADE_STUDY = Path("study")  # where `make run` writes the paper study

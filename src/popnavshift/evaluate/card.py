@@ -1,7 +1,7 @@
 """The population-robustness card's tables (pure).
 
 Pipeline: ``card_tables(runs, pedestrians, controller, baselines, rng=...)`` →
-:class:`Card` (pure, from :mod:`popnavshift.analysis`) → ``render_png`` and
+:class:`Card` (pure, from :mod:`popnavshift.analysis`) → ``card_figure`` and
 ``render_html`` of :mod:`.card_page` (given the replay SVG of the worst run, drawn
 elsewhere).
 
@@ -54,6 +54,13 @@ from .verdict import (
 FAILURE_ORDER = ("pedestrian_collision", "world_collision", "timeout")  # worst first
 METRIC_LABELS = {"robot_time": "robot time [s]", "mean_delay": "mean delay [s]",
                  "worst_decile": "worst-decile delay [s]", "cvar90": "CVaR-90 delay [s]"}
+#: the outcomes table's columns as the card and its Markdown / LaTeX export name them
+OUTCOME_LABELS = {"controller": "controller", "success_pct": "success %",
+                  "pedestrian_collision_pct": "ped. coll. %",
+                  "world_collision_pct": "world coll. %", "timeout_pct": "timeout %",
+                  "controller_error_pct": "ctrl error %", "robot_time": "robot time [s]",
+                  "mean_delay": "mean delay [s]", "worst_decile": "worst decile [s]",
+                  "n_runs": "runs"}
 N_WORST = 2  # populations named as "where it does worst"
 
 
@@ -75,6 +82,14 @@ class Card:
     verdict: Verdict
     safety_rates: pd.DataFrame  # per (kind, scope, controller): rate with its interval
     safety_differences: pd.DataFrame  # per (kind, scope, baseline): paired difference
+
+    def tables(self) -> dict[str, pd.DataFrame]:
+        """Every table the card shows, by the name of its CSV file (``<name>.csv``)."""
+        return {"outcomes": self.outcomes.reset_index(), "per_population": self.per_population,
+                "gaps": self.gaps, "reversals": self.reversals,
+                "significant_reversals": self.evidence.reversals, "ranks": self.evidence.ranks,
+                "wins": self.evidence.wins, "safety_rates": self.safety_rates,
+                "safety_differences": self.safety_differences, "errors": self.errors}
 
 
 def card_tables(runs: pd.DataFrame, pedestrians: pd.DataFrame, controller: str,

@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -17,44 +18,58 @@ from markupsafe import Markup
 from ..analysis import METRICS, TOLERANCES
 from ..io import write_atomic, write_text
 from ..populations.build import population_order
+from ..viz.style import controller_style
 from .card import METRIC_LABELS, N_WORST, Card
 from .safety import FAILURES
 from .verdict import VERDICT_METRICS
 
 
 # ------------------------------------------------------------------------ the figure
-def render_png(card: Card, path: Path) -> Path:
-    """Four panels: the three metrics per population by controller, and the reversal
-    rates against each baseline with their intervals."""
+def card_figure(card: Card):
+    """Four panels: the three metrics per population by controller (each in its own style,
+    the evaluated one highlighted), and the reversal rates against each baseline with
+    their intervals. A matplotlib Figure."""
     import matplotlib  # lazy: only drawing the card needs matplotlib (slow to import)
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(2, 2, figsize=(12, 8), constrained_layout=True)
-    pp = card.per_population
-    pops = population_order(pp["population"].unique())
-    x = np.arange(len(pops))
-    palette = [plt.get_cmap("tab10")(i) for i in range(10)]
-    colours = {b: palette[i % 10] for i, b in enumerate(card.baselines)}
     ctrls = (*card.baselines, card.controller)
-    offset = {c: (i - (len(ctrls) - 1) / 2) * 0.15 for i, c in enumerate(ctrls)}
     for ax, metric in zip(axes.flat[:3], METRICS, strict=True):
-        for ctrl in ctrls:  # populations are categories: markers, no joining lines
-            s = pp[pp["controller"] == ctrl].set_index("population")[metric].reindex(pops)
-            mine = ctrl == card.controller
-            ax.scatter(x + offset[ctrl], s.to_numpy(float), marker="D" if mine else "o",
-                       s=45 if mine else 25, color="black" if mine else colours[ctrl],
-                       label=ctrl, zorder=3 if mine else 2)
-        ax.set_title(METRIC_LABELS[metric])
-        ax.set_xticks(x, pops, rotation=30, ha="right", fontsize=8)
-        ax.grid(alpha=0.3)
+        population_panel(ax, card.per_population, metric, ctrls, card.controller)
     axes.flat[0].legend(fontsize=8)
     _reversal_panel(axes.flat[3], card)
     fig.suptitle(f"Population robustness of {card.controller}", fontsize=13)
-    write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
+    return fig
+
+
+def save_png(fig, path: Path, dpi: int = 110) -> Path:
+    """Write ``fig`` to ``path`` as PNG (atomically) and close it."""
+    import matplotlib.pyplot as plt
+
+    write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=dpi))
     plt.close(fig)
     return Path(path)
+
+
+def population_panel(ax, per_population: pd.DataFrame, metric: str, controllers: Sequence[str],
+                     highlight: str | None = None) -> None:
+    """``metric`` [s] per population (x, categories: markers, no joining lines), one series
+    per controller in its own style (:func:`controller_style`); ``highlight`` drawn larger
+    with a black edge. ``per_population``: rows (population, controller) with ``metric``."""
+    pops = population_order(per_population["population"].unique())
+    x = np.arange(len(pops))
+    for i, ctrl in enumerate(controllers):
+        s = per_population[per_population["controller"] == ctrl].set_index("population")
+        look, mine = controller_style(ctrl), ctrl == highlight
+        ax.scatter(x + (i - (len(controllers) - 1) / 2) * 0.15,
+                   s[metric].reindex(pops).to_numpy(float), marker=look.marker,
+                   s=60 if mine else 28, color=look.colour, label=ctrl, zorder=3 if mine else 2,
+                   edgecolors="black" if mine else "none", linewidths=1.2)
+    ax.set_title(METRIC_LABELS[metric])
+    ax.set_xticks(x, pops, rotation=30, ha="right", fontsize=8)
+    ax.grid(alpha=0.3)
 
 
 def _reversal_panel(ax, card: Card) -> None:
@@ -65,7 +80,7 @@ def _reversal_panel(ax, card: Card) -> None:
         rate = s["rate"].to_numpy(float)
         err = np.vstack([rate - s["ci_low"].to_numpy(float), s["ci_high"].to_numpy(float) - rate])
         xs = np.arange(len(METRICS)) + (i - (len(card.baselines) - 1) / 2) * width
-        ax.bar(xs, np.nan_to_num(rate), width, label=f"vs {b}")
+        ax.bar(xs, np.nan_to_num(rate), width, label=f"vs {b}", color=controller_style(b).colour)
         ax.errorbar(xs, rate, yerr=np.nan_to_num(err), fmt="none", ecolor="#333", capsize=3)
         tops = np.nan_to_num(np.fmax(s["ci_high"].to_numpy(float), rate))
         for xi, top, k, n in zip(xs, tops, s["reversals"], s["comparisons"], strict=True):
@@ -160,7 +175,7 @@ def _win_rows(card: Card) -> list[dict[str, Any]]:
 
 def write_card(card: Card, meta: dict[str, Any], out: Path, svg: str | None) -> tuple[Path, Path]:
     """``out/card.png`` and ``out/card.html``; returns both paths."""
-    png = render_png(card, Path(out) / "card.png")
+    png = save_png(card_figure(card), Path(out) / "card.png")
     return write_text(render_html(card, meta, png.name, svg), Path(out) / "card.html"), png
 
 

@@ -29,7 +29,6 @@ import re
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -50,7 +49,7 @@ from ..engine.worker import Context
 from ..episodes.specs import all_episodes
 from ..errors import ConfigError, InputError
 from ..hashing import digest
-from ..io import write_atomic, write_json
+from ..io import write_json
 from ..pipeline import read_table
 from ..sim.check import ControllerContractError, check_controller
 from ..sim.controllers import CONTROLLERS
@@ -59,8 +58,9 @@ from ..sim.controllers.registry import controller_id, parse_controller_id
 from ..tables import NO_ROBOT, RUN_KEY
 from ..version import __version__
 from ..viz.replay import render_svg, run_outcome
-from .card import card_tables
+from .card import OUTCOME_LABELS, card_tables
 from .card_page import write_card
+from .export import write_table
 
 BASELINES: tuple[str, ...] = BUILTIN_CONTROLLERS
 Tables = tuple[pd.DataFrame, pd.DataFrame]  # runs, pedestrians
@@ -250,10 +250,11 @@ def replay(ev: Evaluation, key: dict[str, Any]) -> tuple[dict, dict]:
 
 def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0,
               safety_threshold: float | None = None) -> tuple[Path, Path]:
-    """Write ``card.html``, ``card.png``, the verdict and safety tables as ``card.json`` and
-    ``safety_rates.csv`` / ``safety_differences.csv`` into ``ev.out``; returns the page's
-    and the figure's paths. ``seed`` drives the bootstrap (the same seed gives the same
-    intervals); ``safety_threshold``, when given, is a share of the controller's runs
+    """Write ``card.html``, ``card.png``, the verdict as ``card.json`` and every table the
+    card shows as ``<name>.csv`` (:meth:`Card.tables`; the outcomes also as ``outcomes.md``
+    and ``outcomes.tex``) into ``ev.out``; returns the page's and the figure's paths.
+    ``seed`` drives the bootstrap (the same seed gives the same intervals);
+    ``safety_threshold``, when given, is a share of the controller's runs
     above which a collision kind or controller errors read unsafe whatever the baselines
     do."""
     n_sets = int(seed_sets(ev.runs).nunique())
@@ -279,16 +280,20 @@ def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0,
             "replay_note": note, "n_boot": n_boot, "seed": seed,
             "base_folder": str(ev.base_folder), "seed_sets": n_sets, "n_used": len(ev.runs),
             "safety_threshold": safety_threshold}
-    for name in ("safety_rates", "safety_differences"):
-        table = getattr(card, name)
-        write_atomic(ev.out / f"{name}.csv", partial(table.to_csv, index=False))
+    tables = card.tables()
+    for name, table in tables.items():
+        write_table(table, ev.out / f"{name}.csv", "csv")
+    main = tables["outcomes"][list(OUTCOME_LABELS)].rename(columns=OUTCOME_LABELS)
+    for fmt in ("md", "tex"):  # the main table, for a paper
+        write_table(main, ev.out / f"outcomes.{fmt}", fmt)
     write_json({"controller": ev.controller, "baselines": list(ev.baselines),
                 "verdict": {"label": card.verdict.label, "text": card.verdict.text,
                             "safety": card.verdict.safety,
                             "seed_sets_to_decide": (card.verdict.seed_sets_to_decide if
                                                     np.isfinite(card.verdict.seed_sets_to_decide)
                                                     else None)},
-                "safety_threshold": safety_threshold, "n_boot": n_boot, "seed": seed},
+                "safety_threshold": safety_threshold, "n_boot": n_boot, "seed": seed,
+                "config_hash": ev.study.config_hash(), "tables": [f"{n}.csv" for n in tables]},
                ev.out / "card.json")
     return write_card(card, meta, ev.out, svg)
 

@@ -27,14 +27,13 @@ from ..analysis.paper_reference import WIDTH_SENSITIVITY  # noqa: E402
 from ..analysis.summary import controller_order  # noqa: E402
 from ..populations.build import POPULATION_GROUPS, population_order  # noqa: E402
 from ..populations.figures import save_figure, write_profile_figures  # noqa: E402
+from ..viz.style import controller_style  # noqa: E402
 
 if TYPE_CHECKING:
     from ..analysis.study import Analysis
 
 CONTROLLER_LABELS = {"reactive": "Reactive", "early_yield": "Early yielding",
                      "robot_orca": "Robot-ORCA", "pooled": "pooled", "none": "no robot"}
-CONTROLLER_COLOURS = {"reactive": "#4C72B0", "early_yield": "#DD8452", "robot_orca": "#55A868",
-                      "pooled": "#222222"}
 METRIC_LABELS = {"robot_time": "Robot travel time", "mean_delay": "Mean pedestrian delay",
                  "worst_decile": "Worst-decile delay"}
 #: Fig. 2 row groups, top to bottom: matched pair, source-field cohorts, mixed, probe cohorts.
@@ -45,11 +44,6 @@ CHANGE_GROUPS: tuple[tuple[str, ...], ...] = (
 
 def controller_label(name: str) -> str:
     return CONTROLLER_LABELS.get(name, name)
-
-
-def controller_colour(name: str, i: int = 0) -> str:
-    fallback = plt.get_cmap("tab10")(3 + i % 7)
-    return CONTROLLER_COLOURS.get(name) or matplotlib.colors.to_hex(fallback)
 
 
 def pop_label(name: str) -> str:
@@ -164,13 +158,14 @@ def plot_width_sensitivity(by_width: pd.DataFrame) -> plt.Figure:
     ctrls = [*controller_order(sorted(set(by_width["controller"]) - {"pooled"})), "pooled"]
     for ax, scene, tag in zip(axes[0], scenes, "ab", strict=False):
         s = by_width[by_width["scenes"] == scene]
-        for i, c in enumerate(ctrls):
+        for c in ctrls:
+            look = controller_style(c)
             for cells, style in (("all", "-"), ("completed", ":")):
                 d = s[(s["controller"] == c) & (s["cells"] == cells)].sort_values("width")
                 if d.empty:
                     continue
-                ax.plot(d["width"], d["sensitivity"], style, marker="o", ms=4,
-                        lw=2.2 if c == "pooled" else 1.4, color=controller_colour(c, i),
+                ax.plot(d["width"], d["sensitivity"], style, marker=look.marker, ms=4,
+                        lw=2.2 if c == "pooled" else 1.4, color=look.colour,
                         label=f"{controller_label(c)}" if cells == "all" else None)
         ws = sorted(WIDTH_SENSITIVITY)
         ax.scatter(ws, [WIDTH_SENSITIVITY[w] for w in ws], marker="*", s=120,
@@ -231,11 +226,11 @@ def plot_tradeoff(tradeoff: pd.DataFrame) -> plt.Figure:
     ctrls = controller_order(tradeoff["controller"].unique())
     for ax, pop in zip(axes.flat, pops, strict=False):
         t = tradeoff[tradeoff["population"] == pop].set_index("controller")
-        for i, c in enumerate(ctrls):
+        for c in ctrls:
             if c not in t.index:
                 continue
             x, lo, hi = t.at[c, "robot_time"], t.at[c, "mean_delay"], t.at[c, "worst_decile"]
-            col = controller_colour(c, i)
+            col = controller_style(c).colour  # markers say the metric here: ● mean, ▲ tail
             ax.plot([x, x], [lo, hi], color=col, lw=1, alpha=0.6)
             ax.scatter([x], [lo], color=col, marker="o", label=controller_label(c))
             ax.scatter([x], [hi], color=col, marker="^")

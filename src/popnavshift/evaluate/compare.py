@@ -1,0 +1,153 @@
+"""Several controllers side by side: their cards' verdicts and one table on the same runs.
+
+Pipeline: ``compare(controllers, study, base_folder)`` evaluates each controller
+(:func:`.run.evaluate`: cached, so a controller already evaluated simulates nothing) and
+writes its card unless a card of the same study, baselines and runs is there (its
+``card.json`` is read instead); then ``compare_table`` (pure) puts every controller in one
+table, on the union of their runs — the same episodes and populations for all:
+
+* the card's verdict label and safety findings;
+* outcome shares [%] with exact (Clopper–Pearson) 95 % intervals;
+* robot time, mean delay, worst decile and CVaR-90 [s], each the mean over (cell,
+  population) rows of the cell statistic (as on the card);
+* per metric, the controller's rank among the compared (1 = lowest), and its best and
+  worst rank over the populations (how much its standing moves with the population).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ..analysis import cell_metrics, paired_delays
+from ..analysis.summary import OUTCOMES
+from ..analysis.verdicts import clopper_pearson
+from ..engine.study import Study
+from ..sim.controllers import CONTROLLERS
+from ..sim.controllers.registry import controller_id, parse_controller_id
+from ..tables import NO_ROBOT, RUN_KEY
+from .run import BASELINES, EVALUATE_DIR, Evaluation, evaluate, make_card, slug
+
+COMPARE_METRICS: tuple[str, ...] = ("robot_time", "mean_delay", "worst_decile", "cvar90")
+LEVEL = 0.95
+Log = Callable[[str], None]
+
+
+@dataclass
+class Comparison:
+    """The compared controllers (in the order given), their table (:func:`compare_table`),
+    the per-population means behind the figure, each controller's card page and the
+    ``verdict`` object of its ``card.json``."""
+
+    controllers: tuple[str, ...]
+    table: pd.DataFrame
+    per_population: pd.DataFrame
+    cards: dict[str, Path]
+    verdicts: dict[str, dict[str, Any]]
+    study: Study
+    base_folder: Path
+
+
+def outcome_shares(runs: pd.DataFrame, controllers: Sequence[str]) -> pd.DataFrame:
+    """Per controller (index): ``runs`` and, per outcome, ``<outcome>_pct`` [%] with its
+    Clopper–Pearson ``<outcome>_low`` / ``<outcome>_high`` [%] over the controller's runs."""
+    rows = []
+    for ctrl in controllers:
+        outcome = runs.loc[runs["controller"] == ctrl, "outcome"]
+        row: dict[str, Any] = {"controller": ctrl, "runs": len(outcome)}
+        for o in OUTCOMES:
+            k = int((outcome == o).sum())
+            low, high = clopper_pearson(k, len(outcome), LEVEL)
+            row.update({f"{o}_pct": 100 * k / len(outcome) if len(outcome) else np.nan,
+                        f"{o}_low": 100 * low, f"{o}_high": 100 * high})
+        rows.append(row)
+    return pd.DataFrame(rows).set_index("controller")
+
+
+def population_means(cells: pd.DataFrame, controllers: Sequence[str]) -> pd.DataFrame:
+    """Per (population, controller): the mean over cells of each compared metric [s]."""
+    c = cells[cells["controller"].isin(controllers)]
+    return c.groupby(["population", "controller"])[list(COMPARE_METRICS)].mean().reset_index()
+
+
+def ranks(cells: pd.DataFrame, per_population: pd.DataFrame,
+          controllers: Sequence[str]) -> pd.DataFrame:
+    """Per controller (index) and metric: ``rank_<m>`` of its mean over every (cell,
+    population) row among ``controllers`` (1 = lowest, ties share the best rank), and
+    ``rank_<m>_best`` / ``rank_<m>_worst``, its best and worst rank over populations."""
+    c = cells[cells["controller"].isin(controllers)]
+    overall = c.groupby("controller")[list(COMPARE_METRICS)].mean()
+    out = pd.DataFrame(index=pd.Index(list(controllers), name="controller"))
+    for m in COMPARE_METRICS:
+        out[f"rank_{m}"] = overall[m].rank(method="min").reindex(out.index).astype("Int64")
+        by_pop = per_population.groupby("population")[m].rank(method="min")
+        r = by_pop.groupby(per_population["controller"])
+        out[f"rank_{m}_best"] = r.min().reindex(out.index).astype("Int64")
+        out[f"rank_{m}_worst"] = r.max().reindex(out.index).astype("Int64")
+    return out
+
+
+def compare_table(runs: pd.DataFrame, pedestrians: pd.DataFrame, controllers: Sequence[str],
+                  verdicts: dict[str, dict[str, Any]]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The comparison (module doc): one row per controller, in the order given, and the
+    per-population means [s] it ranks (for the figure). ``verdicts``: controller → the
+    ``verdict`` object of its ``card.json`` (``label``, ``safety``)."""
+    cells = cell_metrics(runs, paired_delays(pedestrians))
+    per_pop = population_means(cells, controllers)
+    means = cells[cells["controller"].isin(controllers)].groupby("controller")[
+        list(COMPARE_METRICS)].mean()
+    head = pd.DataFrame({
+        "verdict": [verdicts[c]["label"] for c in controllers],
+        "safety_findings": [len(verdicts[c]["safety"]) for c in controllers],
+        "safety": [" / ".join(verdicts[c]["safety"]) for c in controllers],
+    }, index=pd.Index(list(controllers), name="controller"))
+    table = pd.concat([head, outcome_shares(runs, controllers), means.reindex(head.index),
+                       ranks(cells, per_pop, controllers)], axis=1)
+    return table.reset_index(), per_pop
+
+
+# ------------------------------------------------------------------ files and runs
+def card_is_current(card_json: Path, ev: Evaluation) -> bool:
+    """Whether ``card_json`` is the card of ``ev``: same study configuration and
+    baselines, and no run of ``ev`` was simulated since (nothing executed)."""
+    if ev.executed or not card_json.exists():
+        return False
+    card = json.loads(card_json.read_text("utf-8"))
+    return (card.get("config_hash") == ev.study.config_hash()
+            and card.get("baselines") == list(ev.baselines))
+
+
+def compare(controllers: Sequence[str], study: Study, base_folder: Path, *, workers: int = 2,
+            n_boot: int = 1000, seed: int = 0, show_progress: bool = True,
+            log: Log | None = None) -> Comparison:
+    """Evaluate (cached) and card every controller that has no current card, then compare
+    them all on the union of their runs (module doc)."""
+    say = log or (lambda _msg: None)
+    ids = tuple(dict.fromkeys(controller_id(*parse_controller_id(c)) for c in controllers))
+    for c in ids:  # every name must resolve before anything runs
+        CONTROLLERS.make(c)
+    evaluations, verdicts, cards = [], {}, {}
+    for c in ids:
+        out = Path(base_folder) / EVALUATE_DIR / slug(c)
+        ev = evaluate(c, study, base_folder, out, baselines=BASELINES, workers=workers,
+                      show_progress=show_progress, log=say)
+        if card_is_current(out / "card.json", ev):
+            say(f"{c}: card reused ({out / 'card.html'})")
+        else:
+            make_card(ev, n_boot=n_boot, seed=seed)
+            say(f"{c}: card → {out / 'card.html'}")
+        verdicts[c] = json.loads((out / "card.json").read_text("utf-8"))["verdict"]
+        cards[c] = out / "card.html"
+        evaluations.append(ev)
+    runs = pd.concat([e.runs for e in evaluations]).drop_duplicates(list(RUN_KEY))
+    peds = pd.concat([e.pedestrians for e in evaluations]).drop_duplicates([*RUN_KEY, "slot"])
+    runs = runs[runs["controller"].isin([*ids, NO_ROBOT])]
+    peds = peds[peds["controller"].isin([*ids, NO_ROBOT])]
+    table, per_pop = compare_table(runs, peds, ids, verdicts)
+    return Comparison(ids, table, per_pop, cards, verdicts, study, Path(base_folder))
