@@ -257,3 +257,18 @@ def test_a_controller_written_from_scratch_on_a_bare_behavior_moves(first_and_se
     runs = pd.read_parquet(card / "runs.parquet")
     assert len(runs) == 40 and (runs["outcome"] == "success").mean() > 0.3
     assert json.loads((card / "card.json").read_text())["verdict"]["label"]
+
+
+def test_load_reaches_the_evaluated_controllers_runs(first_and_second):
+    import popnavshift
+
+    root, first, _ = first_and_second
+    assert first.returncode == 0, first.stderr
+    runs = popnavshift.load(root / "study-quick", part="main")
+    assert CLASS_SPEC in set(runs["controller"]) and (runs["part"] == "main").all()
+    alone = popnavshift.load(root / "study-quick", part="main", evaluated=False)
+    assert CLASS_SPEC not in set(alone["controller"])
+    extra = runs[~runs["run_id"].isin(alone["run_id"])]  # the evaluated controllers' runs
+    assert CLASS_SPEC in set(extra["controller"])
+    assert not set(extra["controller"]) & set(alone["controller"])
+    assert not runs.duplicated("run_id").any()

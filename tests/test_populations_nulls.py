@@ -91,3 +91,20 @@ def test_a_swap_null_part_stands_for_the_matched_pair():
                                         "null_design": {"kind": "swap"}}}}
     with pytest.raises(ConfigError, match="swap null stands in for the matched pair"):
         study_from_dict(bad, "t")
+
+
+def test_population_columns_say_what_a_population_is():
+    from popnavshift.populations.nulls import population_columns, with_population_columns
+
+    assert population_columns("mixed") == {"population_role": "observed", "null_replicate": 0}
+    assert population_columns("matched_swap7_a") == {"population_role": "swap_null",
+                                                     "null_replicate": 7}
+    assert population_columns("high_caution_sized3") == {"population_role": "sized_null",
+                                                         "null_replicate": 3}
+    assert population_columns("mixed_half_b")["population_role"] == "half"
+    import pandas as pd
+
+    old = pd.DataFrame({"population": ["mixed", "matched_swap2_b"]})  # stored before them
+    filled = with_population_columns(old)
+    assert list(filled["population_role"]) == ["observed", "swap_null"]
+    assert list(filled["null_replicate"]) == [0, 2]

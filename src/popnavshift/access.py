@@ -19,12 +19,16 @@ from .errors import ConfigError, InputError, UnknownNameError
 TABLES = ("runs", "pedestrians")
 
 
-def load(study: str | Path, part: str | None = "main", table: str = "runs") -> pd.DataFrame:
+def load(study: str | Path, part: str | None = "main", table: str = "runs", *,
+         evaluated: bool = True) -> pd.DataFrame:
     """The ``table`` rows (runs or pedestrians) of study part ``part`` (None: every row).
 
     Every run the part plans, shared or not, with ``part`` set to ``part``; rows in
-    the stored order. Raises :class:`InputError` when the folder lacks the table or
-    the manifest, :class:`UnknownNameError` for a part the study does not have.
+    the stored order. With ``evaluated``, the runs of every controller evaluated against
+    the study (``popnavshift evaluate``, kept in ``STUDY/evaluate/<controller>/``) follow,
+    on the episodes they share with the part. Raises :class:`InputError` when the folder
+    lacks the table or the manifest, :class:`UnknownNameError` for a part the study does
+    not have.
     """
     folder = Path(study)
     if table not in TABLES:
@@ -33,10 +37,23 @@ def load(study: str | Path, part: str | None = "main", table: str = "runs") -> p
     if not path.is_file():
         raise InputError(f"{path}: not found", hint="run the study first (popnavshift run)")
     rows = pd.read_parquet(path)
+    extra = ([pd.read_parquet(p) for p in sorted((folder / "evaluate").glob(f"*/{table}.parquet"))]
+             if evaluated else [])
+    key = ["run_id", "slot"] if table == "pedestrians" else ["run_id"]
     if part is None:
-        return rows
+        return _with(rows, extra, key)
     ids = part_run_ids(folder, part)
-    return rows[rows["run_id"].isin(ids)].assign(part=part)
+    mine = rows[rows["run_id"].isin(ids)]
+    episodes = set(mine["episode"])
+    return _with(mine, [e[e["episode"].isin(episodes)] for e in extra], key).assign(part=part)
+
+
+def _with(rows: pd.DataFrame, extra: list[pd.DataFrame], key: list[str]) -> pd.DataFrame:
+    """``rows`` and then the evaluated controllers' rows it does not hold already (a
+    baseline evaluated as a controller keeps copies of the study's own runs)."""
+    if not extra:
+        return rows
+    return pd.concat([rows, *extra], ignore_index=True).drop_duplicates(key, ignore_index=True)
 
 
 def part_run_ids(folder: Path, part: str) -> set[str]:

@@ -53,22 +53,28 @@ import popnavshift
 runs = popnavshift.load("study", part="main")  # every run of the main grid
 peds = popnavshift.load("study", part="matched", table="pedestrians")
 rows = popnavshift.load("study", part=None)  # every row, each under its first part
+main = runs[runs["population_role"] == "observed"]  # the conditions, no null replicate
 ```
+
+`load` also returns the runs of every controller evaluated against the study
+(`popnavshift evaluate`, kept in `study/evaluate/<controller>/`), on the part's
+episodes; `evaluated=False` leaves them out.
 
 Nothing needs parsing out of an id or a label: `seed_set` says which episode draw a
 run used (the `…@s<k>` episodes); `profile_set` how its profiles were made (the `A~…`
 profile sets), spelt out as `profile_base` (the mapping), `perturbation` and
-`perturbation_arg` (e.g. `A`, `block`, `caution` for `A~block-caution`); and `run_id`
-joins a run to its pedestrians. With DuckDB, straight from the
-files (`main` comes first in every shipped study, so its runs are exactly the rows
-stored under it):
+`perturbation_arg` (e.g. `A`, `block`, `caution` for `A~block-caution`);
+`population_role` what a population is (`observed`, `swap_null`, `sized_null`, `half`)
+and `null_replicate` which null replicate; and `run_id` joins a run to its pedestrians.
+With DuckDB, straight from the files (`main` comes first in every shipped study, so its
+runs are exactly the rows stored under it):
 
 ```sql
 -- success rate per controller and population in the main grid
 SELECT controller, population, avg((outcome = 'success')::INT) AS success_rate,
        count(*) AS runs
 FROM 'study/runs.parquet'
-WHERE part = 'main' AND controller <> 'none'
+WHERE part = 'main' AND population_role = 'observed' AND controller <> 'none'
 GROUP BY ALL ORDER BY ALL;
 
 -- mean travel time of the pedestrians who arrived, original profiles, study seed set

@@ -243,6 +243,8 @@ BUILTIN_CONTROLLERS: tuple[str, ...] = ("reactive", "early_yield", "robot_orca")
 #: :meth:`popnavshift.populations.perturb.ProfileSet.columns`)
 PROFILE_SET_COLUMNS: tuple[str, ...] = (
     "profile_set", "profile_base", "perturbation", "perturbation_arg")
+#: what a run's population is, as columns (values: populations.nulls.population_columns)
+POPULATION_COLUMNS: tuple[str, ...] = ("population_role", "null_replicate")
 
 _NO_ROBOT_NAN = "no robot (controller none), or the controller raised (controller_error)"
 _RUN_COLUMNS = (
@@ -251,6 +253,11 @@ _RUN_COLUMNS = (
     _col("episode", "str", "episode id; …@s<k> = the same cell and variant drawn with seed "
          "set k", refers="episodes.id"),
     _col("population", "str", "population condition", refers="populations.population"),
+    _col("population_role", "str", "what the population is: observed (a condition of the "
+         "study), swap_null or sized_null (a null replicate: keep them out of any summary of "
+         "the conditions), half (a split half of the noise floor)"),
+    _col("null_replicate", "int", "the replicate k of a swap_null or sized_null population; "
+         "0 for the others"),
     _col("controller", "str", "robot controller id; none = no-robot baseline run"),
     _col("backend", "str", "pedestrian dynamics: orca (Ped-ORCA) or hl (navground HL)"),
     _col("mapping", "str", MAPPING_DOC, refers="populations.mapping"),

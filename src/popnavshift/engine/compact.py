@@ -25,6 +25,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from ..io import atomic_path
+from ..populations.nulls import with_population_columns
 from ..populations.perturb import with_profile_set_columns
 from ..tables import PEDESTRIANS, RUN_KEY, RUNS, check_table
 
@@ -111,6 +112,7 @@ def _sorted_chunk(frames: list[pd.DataFrame], name: str, key: list[str]) -> pd.D
             df["error"] = None
         df["error"] = df["error"].astype("string")  # all-None would be Arrow's null type
     df = with_profile_set_columns(df)  # rows stored before those columns existed
+    df = with_population_columns(df)
     df = df.sort_values(key, kind="stable").reset_index(drop=True)
     return check_table(df, name)
 

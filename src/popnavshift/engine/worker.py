@@ -30,6 +30,7 @@ import numpy as np
 import pandas as pd
 
 from ..episodes.specs import EpisodeSpec, get_episode, seed_set_of
+from ..populations.nulls import population_columns
 from ..populations.perturb import ProfileSet
 from ..sim.run import ControllerError, SimResult, failed_result, pedestrian_table, simulate
 from ..sim.slots import SlotProfiles, profiles_of_members
@@ -156,6 +157,7 @@ def run_batch(
             "part": run.part,
             "episode": run.episode,
             "population": run.population,
+            **population_columns(run.population),
             "controller": run.controller,
             "backend": run.backend,
             "mapping": run.mapping,

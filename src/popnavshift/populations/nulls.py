@@ -29,6 +29,7 @@ import re
 from dataclasses import dataclass
 
 import numpy as np
+import pandas as pd
 
 from ..hashing import stable_seed
 
@@ -51,6 +52,32 @@ class NullName:
     replicate: int
     arm: str = ""
     of: str = ""
+
+
+def population_columns(name: str) -> dict[str, object]:
+    """The runs and pedestrians tables' :data:`popnavshift.tables.POPULATION_COLUMNS` of
+    population ``name``: its role (observed, swap_null, sized_null, half) and null
+    replicate (0 unless a null), written to the tables so that no reader parses names."""
+    null = parse_null(name)
+    if null is not None:
+        return {"population_role": f"{null.kind}_null", "null_replicate": null.replicate}
+    half = name.endswith(("_half_a", "_half_b"))
+    return {"population_role": "half" if half else "observed", "null_replicate": 0}
+
+
+def with_population_columns(table: pd.DataFrame) -> pd.DataFrame:
+    """``table`` with the population columns filled from its ``population`` where they are
+    absent (rows stored before the columns existed are carried, not re-run)."""
+    if "population" not in table.columns or (
+            "population_role" in table.columns and table["population_role"].notna().all()):
+        return table
+    cols = {p: population_columns(str(p)) for p in table["population"].unique()}
+    out = table.copy()
+    for column in ("population_role", "null_replicate"):
+        derived = out["population"].map({p: c[column] for p, c in cols.items()})
+        out[column] = out[column].fillna(derived) if column in out else derived
+    out["null_replicate"] = out["null_replicate"].astype("int64")
+    return out
 
 
 def swap_name(replicate: int, arm: str) -> str:
