@@ -272,3 +272,15 @@ def test_load_reaches_the_evaluated_controllers_runs(first_and_second):
     assert CLASS_SPEC in set(extra["controller"])
     assert not set(extra["controller"]) & set(alone["controller"])
     assert not runs.duplicated("run_id").any()
+
+
+def test_results_and_cards_as_dataframes_from_python(first_and_second):
+    import popnavshift
+
+    root, first, _ = first_and_second
+    assert first.returncode == 0, first.stderr
+    cards = popnavshift.cards(root / "study-quick")
+    card = next(v for k, v in cards.items() if k.startswith("slow_near_peds"))
+    assert card["verdict"]["label"] and isinstance(card["safety_rates"], pd.DataFrame)
+    with pytest.raises(popnavshift.errors.InputError, match="popnavshift report"):
+        popnavshift.results(root / "nowhere")

@@ -225,3 +225,30 @@ def test_the_compare_page_loads_without_console_errors(tmp_path):
     assert len(dom["images"]) == 1 and dom["images"][0]["ok"]
     assert dom["images"][0]["shown"] > 600
     assert "&lt;b&gt;odd &amp; name&lt;/b&gt;" in paths["html"].read_text()
+
+
+def test_the_card_loads_and_shows_its_safety_table(tmp_path):
+    """A robustness card (synthetic runs, a robot that collides with pedestrians) in the
+    browser: no console error, its figure shows, the safety table has its rows and the
+    unsafe finding is on the page."""
+    import numpy as np
+
+    from popnavshift.evaluate.card import card_tables
+    from popnavshift.evaluate.card_page import write_card
+    from synth_study import no_effect, synthetic_study
+
+    runs, peds = synthetic_study({"p1": no_effect, "p2": no_effect}, n_cells=6, variants=3)
+    hit = runs.index[(runs["controller"] == "a")][::3]
+    runs.loc[hit, "outcome"] = "pedestrian_collision"
+    card = card_tables(runs, peds, "a", ("b", "c"), rng=np.random.default_rng(0), n_boot=50)
+    meta = {"study": "synthetic", "part": "main", "check": "skipped", "reused": 0,
+            "executed": 0, "n_runs": 36, "n_errors": 0, "n_cells": 6, "n_populations": 2,
+            "backends": "orca", "mappings": "A", "replay_note": "", "n_boot": 50, "seed": 0,
+            "base_folder": "-", "seed_sets": 1, "n_used": len(runs), "safety_threshold": None}
+    html, _ = write_card(card, meta, tmp_path, None)
+    dom, problems = load(html, COMPARE_PROBE, tmp_path / "profile")
+    assert problems == []
+    assert dom["scripts"] == 0 and dom["rows"] > 10
+    assert dom["images"] and all(i["ok"] and i["shown"] > 600 for i in dom["images"])
+    text = html.read_text()
+    assert "Verdict: unsafe" in text and "pedestrian collisions (robot moving)" in text

@@ -1,4 +1,6 @@
-"""One call to the runs (or pedestrians) of one study part: ``popnavshift.load``.
+"""One call to a study's data from Python: ``popnavshift.load`` (the runs or pedestrians
+of one study part), ``popnavshift.results`` (every table of its report: the headline,
+power, calibration…) and ``popnavshift.cards`` (every card's tables).
 
 A run that several parts plan is simulated and stored once, under the first part
 that plans it (the ``part`` column), so ``runs[runs.part == "matched"]`` misses the
@@ -76,3 +78,26 @@ def part_run_ids(folder: Path, part: str) -> set[str]:
     only = spec.model_copy(update={"parts": {part: spec.parts[part]}})
     grid = pd.read_parquet(episodes).itertuples(index=False)
     return {run.id for run in plan_study(only, grid)}
+
+
+def results(study: str | Path) -> dict[str, pd.DataFrame]:
+    """Every table of the study's report as a DataFrame, by name (``evidence_headline``,
+    ``evidence_power``, ``evidence_calibration``, ``reversals``, …: the CSVs of
+    ``STUDY/report/tables``). Raises :class:`InputError` when the study has no report."""
+    folder = Path(study) / "report" / "tables"
+    if not folder.is_dir():
+        raise InputError(f"{folder}: not found", hint=f"write the report: popnavshift report "
+                         f"{study}")
+    return {p.stem: pd.read_csv(p) for p in sorted(folder.glob("*.csv"))}
+
+
+def cards(study: str | Path) -> dict[str, dict[str, object]]:
+    """Every robustness card of the study (``popnavshift evaluate``): folder name → its
+    verdict (``card.json``) and tables (its CSVs) as DataFrames, under ``"verdict"`` and
+    each table's name."""
+    out: dict[str, dict[str, object]] = {}
+    for card in sorted((Path(study) / "evaluate").glob("*/card.json")):
+        entry: dict[str, object] = {"verdict": json.loads(card.read_text("utf-8"))["verdict"]}
+        entry.update({p.stem: pd.read_csv(p) for p in sorted(card.parent.glob("*.csv"))})
+        out[card.parent.name] = entry
+    return out

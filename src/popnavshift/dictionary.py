@@ -58,7 +58,13 @@ main = runs[runs["population_role"] == "observed"]  # the conditions, no null re
 
 `load` also returns the runs of every controller evaluated against the study
 (`popnavshift evaluate`, kept in `study/evaluate/<controller>/`), on the part's
-episodes; `evaluated=False` leaves them out.
+episodes; `evaluated=False` leaves them out. The report's tables (the headline with its
+verdicts, power, calibration, Table I…) and the cards' are DataFrames too:
+
+```python
+tables = popnavshift.results("study")  # name → DataFrame, e.g. tables["evidence_headline"]
+cards = popnavshift.cards("study")  # card folder → {"verdict": …, "safety_rates": …, …}
+```
 
 Nothing needs parsing out of an id or a label: `seed_set` says which episode draw a
 run used (the `…@s<k>` episodes); `profile_set` how its profiles were made (the `A~…`

@@ -167,12 +167,24 @@ def _print_table(spec, study: Path | None) -> None:
         meta = pq.ParquetFile(study / spec.file)
         present = meta.schema_arrow.names
         title = f"{study / spec.file} · {meta.metadata.num_rows} rows"
+    undeclared = [n for n in present or [] if n not in spec.names]
+    if out.width < 120:  # a narrow terminal: one short block per column, not a 7-column grid
+        out.print(Text(title, style="bold"))
+        out.print(Text(f"one row per {spec.doc[4:]}"))
+        for c in spec.columns:
+            head = " · ".join(x for x in (c.name, DTYPES[c.kind], c.unit, role(spec, c),
+                                          f"→ {c.refers}" if c.refers else "") if x)
+            out.print(Text(head, style="bold"))
+            out.print(Text(f"    {c.doc}" + (f" (missing: {c.missing})" if c.missing else "")))
+        for extra in undeclared:
+            out.print(Text(f"{extra} · not declared", style="bold red"))
+        return
     grid = Table(title=Text(title), caption=Text(f"one row per {spec.doc[4:]}"))
     for head in ("column", "dtype", "unit", "key", "refers to", "missing means", "meaning"):
         grid.add_column(head, overflow="fold", ratio=3 if head == "meaning" else 1)
     for c in spec.columns:
         cells = (c.name, DTYPES[c.kind], c.unit, role(spec, c), c.refers, c.missing, c.doc)
         grid.add_row(*(Text(x) for x in cells))
-    for extra in [n for n in present or [] if n not in spec.names]:
+    for extra in undeclared:
         grid.add_row(Text(extra), *(Text("") for _ in range(5)), Text("not declared"))
     out.print(grid)

@@ -77,18 +77,20 @@ def _reversal_panel(ax, card: Card) -> None:
     width = 0.8 / max(1, len(card.baselines))
     for i, b in enumerate(card.baselines):
         s = rv[rv["baseline"] == b].set_index("metric").reindex(list(METRICS))
-        rate = s["rate"].to_numpy(float)
-        err = np.vstack([rate - s["ci_low"].to_numpy(float), s["ci_high"].to_numpy(float) - rate])
+        rate = 100 * s["rate"].to_numpy(float)  # in %, as the tables
+        low, high = 100 * s["ci_low"].to_numpy(float), 100 * s["ci_high"].to_numpy(float)
+        err = np.vstack([rate - low, high - rate])
         xs = np.arange(len(METRICS)) + (i - (len(card.baselines) - 1) / 2) * width
         ax.bar(xs, np.nan_to_num(rate), width, label=f"vs {b}", color=controller_style(b).colour)
         ax.errorbar(xs, rate, yerr=np.nan_to_num(err), fmt="none", ecolor="#333", capsize=3)
-        tops = np.nan_to_num(np.fmax(s["ci_high"].to_numpy(float), rate))
+        tops = np.nan_to_num(np.fmax(high, rate))
         for xi, top, k, n in zip(xs, tops, s["reversals"], s["comparisons"], strict=True):
-            ax.text(xi, top + 0.02, f"{k}/{n}", ha="center", fontsize=7)
+            ax.text(xi, top + 2, f"{k}/{n}", ha="center", fontsize=7)
     ax.set_xticks(np.arange(len(METRICS)), [METRIC_LABELS[m].split(" [")[0] for m in METRICS])
-    ax.set_ylim(0, 1)
+    ax.set_ylim(0, 115)  # room for the count labels above a 100% bar
+    ax.set_ylabel("reversals (% of comparable pairs)")
     ax.set_title("ranking reversals across population pairs (95% CI)")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     ax.grid(alpha=0.3, axis="y")
 
 
