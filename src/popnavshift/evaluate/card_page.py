@@ -210,8 +210,8 @@ td{text-align:right}td.l,th{text-align:left}.bad{color:#b00;font-weight:bold}
 <p>Study <b>{{ meta.study }}</b>, part <b>{{ meta.part }}</b> ({{ meta.n_cells }} cells ×
 {{ meta.n_populations }} populations, backend(s) {{ meta.backends }}, mapping(s)
 {{ meta.mappings }}) against {{ card.baselines | join(", ") }}. Contract check:
-{{ meta.check }}. The card uses {{ meta.get("n_used", meta.reused + meta.executed) }} runs
-of this part ({{ meta.reused }} reused, {{ meta.executed }} executed).</p>
+{{ meta.check }}. The card uses {{ "{:,}".format(meta.get("n_used", meta.reused + meta.executed)) }}
+runs of this part; this evaluation simulated {{ "{:,}".format(meta.executed) }} new ones.</p>
 <div class="verdict {{ verdict.label | replace(' ', '-') }}"><b>Verdict: {{ verdict.label }}.</b>
 {{ verdict.text }}</div>
 {% if verdict.safety %}<p class="danger"><b>Safety:</b> {{ verdict.safety | length }}
