@@ -11,6 +11,13 @@ from ..progress import console
 from .app import MAX_WORKERS, app, check_workers, default_folder, say
 from .simulation import ParamOpt, parse_params
 
+#: The study a controller is evaluated against (shared by evaluate and compare).
+BaselineStudy = Annotated[
+    str | None,
+    typer.Option("--study", "-s", help="Baseline study: quick, paper or a YAML file "
+                 "(default: the study `make run` wrote into ./study, else quick)."),
+]
+
 
 @app.command()
 def evaluate(
@@ -22,11 +29,7 @@ def evaluate(
             "package.module:Class subclassing navground.core.Behavior."
         ),
     ],
-    study: Annotated[
-        str | None,
-        typer.Option("--study", "-s", help="Baseline study: quick, paper or a YAML file "
-                     "(default: the study `make run` wrote into ./study, else quick)."),
-    ] = None,
+    study: BaselineStudy = None,
     study_dir: Annotated[
         Path | None,
         typer.Option(
@@ -104,11 +107,7 @@ def compare(
         typer.Argument(help="Controllers to put side by side: any name `evaluate` takes "
                        "(reactive, early_yield, robot_orca, HRVO, package.module:Class, …)."),
     ],
-    study: Annotated[
-        str | None,
-        typer.Option("--study", "-s", help="Baseline study: quick, paper or a YAML file "
-                     "(default: the study `make run` wrote into ./study, else quick)."),
-    ] = None,
+    study: BaselineStudy = None,
     study_dir: Annotated[
         Path | None,
         typer.Option("--study-dir", "-d", help="Folder of the study; evaluated controllers' "

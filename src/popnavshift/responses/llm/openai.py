@@ -159,23 +159,10 @@ class _ChatSession:
         return Reply(message.get("content"), tokens, note, truncated=finish == "length",
                      model=served)
 
-    def check_ready(self) -> None:
-        """``GET {base_url}/models``: 2xx is ready; a server without that route (404,
-        405, 501) is taken as ready and the first request tells; 401/403 is final."""
-        try:
-            resp = self._client.get(self.models_url)
-        except httpx.TimeoutException:
-            raise NotReady(f"no reply within {self.timeout:g} s") from None
-        except httpx.TransportError as exc:
-            raise NotReady(f"connection error ({type(exc).__name__})") from None
-        if resp.status_code < 400 or resp.status_code in (404, 405, 501):
-            return
-        raise NotReady(f"GET /models: HTTP {resp.status_code}: {_error_message(resp)}",
-                       fatal=resp.status_code in (401, 403))
-
-    def identity(self, model: str) -> str | None:
-        """:func:`listing_identity` of ``GET {base_url}/models`` (None without that route
-        or a listing); raises NotReady when the server does not answer (fatal: 401/403)."""
+    def _models(self) -> httpx.Response | None:
+        """``GET {base_url}/models``: the reply, or None from a server without that route
+        (404, 405, 501); raises NotReady when the server does not answer or refuses
+        (fatal: 401/403)."""
         try:
             resp = self._client.get(self.models_url)
         except httpx.TimeoutException:
@@ -187,6 +174,19 @@ class _ChatSession:
         if resp.status_code >= 400:
             raise NotReady(f"GET /models: HTTP {resp.status_code}: {_error_message(resp)}",
                            fatal=resp.status_code in (401, 403))
+        return resp
+
+    def check_ready(self) -> None:
+        """``GET {base_url}/models``: 2xx is ready; a server without that route is taken
+        as ready and the first request tells; 401/403 is final."""
+        self._models()
+
+    def identity(self, model: str) -> str | None:
+        """:func:`listing_identity` of ``GET {base_url}/models`` (None without that route
+        or a listing); raises NotReady when the server does not answer (fatal: 401/403)."""
+        resp = self._models()
+        if resp is None:
+            return None
         try:
             return listing_identity(resp.json(), model)
         except ValueError:
