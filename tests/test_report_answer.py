@@ -164,3 +164,17 @@ def test_every_html_id_of_the_report_is_unique(study):
     page = (study / "report" / "index.html").read_text("utf-8")
     ids = re.findall(r'\bid="([^"]+)"', page)
     assert ids and len(ids) == len(set(ids)), sorted(i for i in ids if ids.count(i) > 1)
+
+
+def test_the_decided_orderings_sentence_follows_the_permutation_verdicts():
+    from popnavshift.analysis.verdicts import DESCRIPTIVE, NOT_SHOWN
+    from popnavshift.report.plain import decided_sentence
+
+    head = pd.DataFrame([{"comparison": "matched", "metric": m, "rule": "sig", "n_null": 19,
+                          "verdict": DESCRIPTIVE, "level": 1 - 0.05 / 8, "reversals": 1,
+                          "comparable": 40, "observed": 0.025}
+                         for m in ("mean_delay", "robot_time")])
+    text = decided_sentence(head)["text"]
+    assert "descriptive: 19 null replicates" in text and "it needs 159" in text
+    head["verdict"] = NOT_SHOWN
+    assert "shows none above the null" in decided_sentence(head)["text"]

@@ -57,7 +57,7 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
                      rng: np.random.Generator, n_boot: int = N_BOOT, level: float = LEVEL,
                      alpha: float = ALPHA, method: str = "holm",
                      metrics: Sequence[str] = EVIDENCE_METRICS,
-                     ci_level: float = CI_LEVEL) -> Tested:
+                     ci_level: float = CI_LEVEL, rates_only: bool = False) -> Tested:
     """Every comparison design of ``designs`` tested on ``runs`` (see the module doc).
 
     Args:
@@ -66,6 +66,9 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
       designs: label → (observed pairs, one list of pairs per null replicate).
       observed: the observed populations (orderings, crossover tests and ranks).
       rng: draws the episode resamples (shared by every metric and population).
+      rates_only: only the rates against their nulls (``headline``, ``null_rates``): the
+        crossover tests, orderings and ranks are left empty (the replicate curve needs
+        no more).
     """
     paired = paired_delays(pedestrians)
     cells = cell_metrics(runs, paired)
@@ -83,12 +86,16 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
                 boot_excess[(label, metric, row["rule"])] = row.pop("boot_excess")
             frames["head"].append(pd.DataFrame(rows).assign(comparison=label))
             frames["null"].append(reps.assign(comparison=label))
+            if rates_only:
+                continue
             frames["cross"].append(crossover_tests(o, _populations(obs_pairs), method=method,
                                                    alpha=alpha)
                                    .assign(comparison=label, metric=metric))
             frames["placebo"].append(placebo_crossovers(o, null_pairs, method=method,
                                                         alpha=alpha)
                                      .assign(comparison=label, metric=metric))
+        if rates_only:
+            continue
         table = o.table()
         frames["ord"].append(table[table["population"].isin(observed)])
         frames["rank"].append(controller_ranks(cells, boot[metric], metric, observed,

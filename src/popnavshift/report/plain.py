@@ -17,7 +17,14 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..analysis.verdicts import ABOVE, BELOW, SMALL, UNDECIDED, min_nulls_permutation
+from ..analysis.verdicts import (
+    ABOVE,
+    BELOW,
+    NOT_SHOWN,
+    SMALL,
+    UNDECIDED,
+    min_nulls_permutation,
+)
 from .blocks import pct
 from .figures import controller_label, pop_label
 
@@ -115,11 +122,15 @@ def decided_sentence(head: pd.DataFrame) -> dict[str, str] | None:
                   if rows["reversals"].nunique() > 1 else f"{rows['reversals'].iloc[0]}")
         total = (f"{rows['comparable'].min():,}–{rows['comparable'].max():,}"
                  if rows["comparable"].nunique() > 1 else f"{rows['comparable'].iloc[0]:,}")
+        # the words follow the verdicts, decided at the table's level (5% / its m rates)
+        level = (float(rows["level"].iloc[0]) if "level" in rows else 0.95)
+        alpha = 1 - level
         test = ("; the exact permutation test puts " + join(above) + " above the null"
                 if above else "; the exact permutation test shows none above the null"
-                if (rows["n_null"] >= min_nulls_permutation()).all() else
+                if (rows["verdict"] == NOT_SHOWN).all() else
                 f" (descriptive: {int(rows['n_null'].min())} null replicates cannot bring the "
-                "exact test to p ≤ 0.05)")
+                f"exact test to its level, p ≤ {alpha:.3g}; it needs "
+                f"{min_nulls_permutation(alpha)})")
         parts.append(f"{name}, {counts} reversals per metric among {total}{test}")
     low, high = 100 * sig["observed"].min(), 100 * sig["observed"].max()
     return {"lead": f"Decided orderings flip in {low:.0f}–{high:.0f}% of comparisons.",
