@@ -65,6 +65,7 @@ class Reply:
     note: str | None = None  # why the text may be incomplete (finish reason, refusal)
     truncated: bool = False  # cut at the token limit (finish_reason length / MAX_TOKENS)
     model: str | None = None  # the model that served the request, as the server names it
+    fingerprint: str | None = None  # the server's build fingerprint (system_fingerprint)
 
 
 class Session(Protocol):
