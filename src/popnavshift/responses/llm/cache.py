@@ -17,11 +17,11 @@ tiny next to a network round trip).
 
 from __future__ import annotations
 
+import json
 import logging
 import sqlite3
 import threading
 import time
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any

@@ -41,9 +41,12 @@ def listing_entry(listing: Any, model: str) -> dict[str, Any] | None:
 
 def listing_details(entry: dict[str, Any]) -> dict[str, Any]:
     """Size (bytes) and parameter count from a llama.cpp listing entry's ``meta``."""
-    meta = entry.get("meta") if isinstance(entry.get("meta"), dict) else {}
+    meta = entry.get("meta")
+    if not isinstance(meta, dict):
+        return {}
     out = {"model_size": meta.get("size"), "model_params": meta.get("n_params")}
-    return {k: float(v) for k, v in out.items() if _is_number(v)}
+    return {k: float(v) for k, v in out.items() if isinstance(v, int | float)
+            and not isinstance(v, bool)}
 
 
 def props_details(props: Any) -> dict[str, Any]:
@@ -65,9 +68,6 @@ def file_name(path: str) -> str:
     return re.split(r"[\\/]", path.rstrip("/\\"))[-1]
 
 
-def _is_number(v: Any) -> bool:
-    return isinstance(v, int | float) and not isinstance(v, bool)
-
 
 def listing_identity(listing: Any, model: str) -> str | None:
     """A fingerprint (sha256 hex) of the model a ``GET /models`` listing says is served as
@@ -77,7 +77,13 @@ def listing_identity(listing: Any, model: str) -> str | None:
     parameter count, so another file behind the same alias is another identity. None
     when the listing names neither."""
     entry = listing_entry(listing, model)
-    return digest({k: v for k, v in entry.items() if k != "created"}) if entry else None
+    return entry_identity(entry) if entry else None
+
+
+def entry_identity(entry: dict[str, Any]) -> str:
+    """sha256 hex of a listing entry without ``created`` (llama.cpp puts the time of the
+    request there)."""
+    return digest({k: v for k, v in entry.items() if k != "created"})
 
 
 def served_identity(ask: Callable[[], Identity | None], cache: ResponseCache | None,

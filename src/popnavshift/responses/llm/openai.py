@@ -10,6 +10,7 @@ environment variable ``api_key_env`` and only ever placed in the
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -20,7 +21,7 @@ from ...redact import redact
 from ..prompt import SYSTEM_PROMPT, build_prompt
 from ..schema import response_json_schema
 from .cache import Identity
-from .identity import listing_details, listing_entry, listing_identity, props_details
+from .identity import entry_identity, listing_details, listing_entry, props_details
 from .readiness import NotReady
 from .retries import Reply, RetryableError, check_status
 from .transport import REASK, LLMRespondent, check_setting, env_key, is_http_url
@@ -224,11 +225,9 @@ class _ChatSession:
         if isinstance(entry.get("meta"), dict):  # llama.cpp: its /props at the server root
             props = self._get(self.models_url.removesuffix("/models").removesuffix("/v1")
                               + "/props")
-            try:
+            with contextlib.suppress(ValueError):  # an unreadable /props tells nothing
                 details.update(props_details(props.json() if props is not None else None))
-            except ValueError:
-                pass
-        return Identity(listing_identity(listing, model) or "", details)
+        return Identity(entry_identity(entry), details)
 
     def close(self) -> None:
         self._client.close()
