@@ -128,7 +128,8 @@ def run_responses(folder: Path, s: PopulationSettings, show_progress: bool = Tru
     personas = read_table(folder / "personas.parquet", "personas")
     matched = matched_ids(personas, s.matched_n, s.seed)
     total = len(personas) + len(matched)
-    with progress_bar(f"probing ({respondent.name})", total * s.samples, show_progress) as advance:
+    with progress_bar(f"probing ({respondent.name})", total * s.samples, show_progress,
+                      note=getattr(respondent, "progress_note", None)) as advance:
         responses, invalid, stats = collect_responses(personas, respondent, matched, advance,
                                                       s.samples)
     write_parquet(invalid, folder / "responses_invalid.parquet")
@@ -140,7 +141,7 @@ def run_responses(folder: Path, s: PopulationSettings, show_progress: bool = Tru
         second = respondent_from(s.respondent2, s.respondent2_options, folder)
         pair = personas[personas["persona_id"].isin(matched)]
         with progress_bar(f"probing ({second.name}, 2nd)", 2 * len(pair) * s.samples2,
-                          show_progress) as adv:
+                          show_progress, note=getattr(second, "progress_note", None)) as adv:
             alt, alt_invalid, alt_stats = collect_responses(pair, second, matched, adv,
                                                             s.samples2)
         write_parquet(alt_invalid, folder / "responses_alt_invalid.parquet")

@@ -31,7 +31,8 @@ from ...redact import redact
 from ..prompt import SYSTEM_PROMPT, build_prompt
 from ..schema import response_json_schema
 from .retries import FinalError, Reply, RetryableError, check_status
-from .transport import REASK, LLMRespondent, check_setting, env_key, is_http_url
+from .settings import check_setting, env_key, is_http_url
+from .transport import REASK, LLMRespondent
 
 DEFAULT_BASE_URL = "https://generativelanguage.googleapis.com"
 API_VERSION = "v1beta"

@@ -24,7 +24,8 @@ from .cache import Identity
 from .identity import entry_identity, listing_details, listing_entry, props_details
 from .readiness import NotReady
 from .retries import Reply, RetryableError, check_status
-from .transport import REASK, LLMRespondent, check_setting, env_key, is_http_url
+from .settings import check_setting, env_key, is_http_url
+from .transport import REASK, LLMRespondent
 
 
 class OpenAIRespondent(LLMRespondent):

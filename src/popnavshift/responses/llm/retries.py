@@ -138,9 +138,11 @@ class RateLimiter:
 def send_with_retries(
     send: Callable[[], Reply], policy: RetryPolicy, limiter: RateLimiter,
     stopped: Callable[[], bool] = lambda: False,
+    on_retry: Callable[[], None] = lambda: None,
 ) -> tuple[Reply, int]:
     """``(reply, calls)``; raises :class:`TransportFailure` once retries are spent, or
-    before a retry once ``stopped()`` (the run is being stopped)."""
+    before a retry once ``stopped()`` (the run is being stopped). ``on_retry()`` is
+    called before each retry (the progress lines count them as they happen)."""
     calls = 0
     while True:
         limiter.wait()
@@ -154,6 +156,7 @@ def send_with_retries(
                 raise TransportFailure(f"{exc.reason} {spent}", calls=calls) from None
             wait = policy.delay(calls, exc.retry_after)
             log.info("%s; retry %d/%d in %.2f s", exc.reason, calls, policy.max_retries, wait)
+            on_retry()
             time.sleep(wait)
         except FinalError as exc:
             raise TransportFailure(exc.reason, calls=calls, fatal=exc.fatal) from None

@@ -27,8 +27,6 @@ request.
 from __future__ import annotations
 
 import logging
-import math
-import os
 import threading
 from abc import abstractmethod
 from collections.abc import Mapping, Sequence
@@ -38,8 +36,8 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from ...errors import ConfigError, MissingKeyError, RespondentError, TransportError
-from ...redact import redact, register_secret
+from ...errors import ConfigError, RespondentError, TransportError
+from ...redact import redact
 from ..probes import PROBE_SET_HASH
 from ..respondent import Answer, ProbeRequest, Progress, Respondent, sample_seed
 from ..schema import parse_answer
@@ -54,6 +52,7 @@ from .retries import (
     add_tokens,
     send_with_retries,
 )
+from .settings import check_setting, is_int, is_pos
 
 log = logging.getLogger("popnavshift.responses.llm")
 
@@ -73,6 +72,12 @@ class _Run:
     breaker: Breaker
     fatal: TransportFailure | None = None
     lock: threading.Lock = field(default_factory=threading.Lock)
+    counts: dict[str, int] = field(
+        default_factory=lambda: {"calls": 0, "retries": 0, "failed": 0})
+
+    def count(self, what: str, n: int = 1) -> None:
+        with self.lock:
+            self.counts[what] += n
 
     def stopped(self) -> bool:
         return self.fatal is not None or self.breaker.tripped is not None
@@ -129,6 +134,7 @@ class LLMRespondent(Respondent):
         #: what the server said of its model (file name, size, parameters, build) in the
         #: last answer_all, or last told (offline replay): the responses' identity columns
         self.served_details: dict[str, Any] = {}
+        self._counts: dict[str, int] = {}  # the current run's calls, retries, failures
 
     @property
     def model(self) -> str:
@@ -166,24 +172,31 @@ class LLMRespondent(Respondent):
             "probe_set": PROBE_SET_HASH,
         }
 
+    def progress_note(self) -> str:
+        """The current run's network calls, transport retries and failed records so far,
+        for the progress lines."""
+        c = self._counts
+        return (f"{c.get('calls', 0)} calls, {c.get('retries', 0)} retries, "
+                f"{c.get('failed', 0)} failed")
+
     def validate(self) -> None:
         """Raise ConfigError for a bad setting (``answer_all`` calls this first)."""
         checks = [
             ("model", isinstance(self.model, str) and self.model.strip() != "",
              "a non-empty model name"),
-            ("max_concurrency", _is_int(self.max_concurrency, 1), "an int ≥ 1"),
-            ("rate_limit", self.rate_limit is None or _is_pos(self.rate_limit),
+            ("max_concurrency", is_int(self.max_concurrency, 1), "an int ≥ 1"),
+            ("rate_limit", self.rate_limit is None or is_pos(self.rate_limit),
              "None or calls/s > 0"),
-            ("timeout", _is_pos(self.timeout), "seconds > 0"),
-            ("max_retries", _is_int(self.max_retries, 0), "an int ≥ 0"),
-            ("max_reasks", _is_int(self.max_reasks, 0), "an int ≥ 0"),
-            ("backoff_base", _is_pos(self.backoff_base) or self.backoff_base == 0, "seconds ≥ 0"),
-            ("backoff_cap", _is_pos(self.backoff_cap) or self.backoff_cap == 0, "seconds ≥ 0"),
-            ("max_tokens", self.max_tokens is None or _is_int(self.max_tokens, 1),
+            ("timeout", is_pos(self.timeout), "seconds > 0"),
+            ("max_retries", is_int(self.max_retries, 0), "an int ≥ 0"),
+            ("max_reasks", is_int(self.max_reasks, 0), "an int ≥ 0"),
+            ("backoff_base", is_pos(self.backoff_base) or self.backoff_base == 0, "seconds ≥ 0"),
+            ("backoff_cap", is_pos(self.backoff_cap) or self.backoff_cap == 0, "seconds ≥ 0"),
+            ("max_tokens", self.max_tokens is None or is_int(self.max_tokens, 1),
              "None or an int ≥ 1"),
-            ("ready_timeout", _is_pos(self.ready_timeout) or self.ready_timeout == 0,
+            ("ready_timeout", is_pos(self.ready_timeout) or self.ready_timeout == 0,
              "seconds ≥ 0"),
-            ("max_consecutive_failures", _is_int(self.max_consecutive_failures, 1),
+            ("max_consecutive_failures", is_int(self.max_consecutive_failures, 1),
              "an int ≥ 1"),
         ]
         for name, ok, expected in checks:
@@ -252,6 +265,7 @@ class LLMRespondent(Respondent):
         secret = self._api_key()  # MissingKeyError before any network call
         run = _Run(self._connect(secret), cache, RateLimiter(self.rate_limit),
                    Breaker(self.max_consecutive_failures))
+        self._counts = run.counts
         pool = ThreadPoolExecutor(self.max_concurrency, "popnavshift-llm")
         try:
             wait_until_ready(run.session.check_ready, f"{self.name} server {self.endpoint}",
@@ -315,8 +329,11 @@ class LLMRespondent(Respondent):
             ans.attempts = attempt + 1
             try:
                 reply, calls = send_with_retries(partial(run.session.send, body), policy,
-                                                 run.limiter, run.stopped)
+                                                 run.limiter, run.stopped,
+                                                 partial(run.count, "retries"))
             except TransportFailure as exc:
+                run.count("calls", exc.calls)
+                run.count("failed")
                 ans.calls += exc.calls
                 ans.error = run.redact(f"transport: {exc}")
                 if exc.fatal:
@@ -326,6 +343,7 @@ class LLMRespondent(Respondent):
                 self._log_failure(run, req, body, ans.error, None)
                 return ans
             run.breaker.record(None)
+            run.count("calls", calls)
             ans.calls += calls
             ans.served_model = reply.model or ans.served_model
             ans.fingerprint = reply.fingerprint or ans.fingerprint
@@ -370,35 +388,3 @@ def _copy(asked: Answer, req: ProbeRequest) -> Answer:
     """The answer to an identical request, for another record of the same batch."""
     return replace(asked, persona_id=req.persona_id, variant=req.variant, calls=0,
                    cached=asked.answer is not None, tokens=dict(asked.tokens))
-
-
-def env_key(*names: str) -> str:
-    """The first non-empty environment variable of ``names``; MissingKeyError otherwise."""
-    for name in names:
-        value = os.environ.get(name, "").strip()
-        if value:
-            register_secret(value)  # masked in every message and log from now on
-            return value
-    listed = " or ".join(names)
-    raise MissingKeyError(
-        f"API key environment variable {listed} is not set",
-        hint=f"export {names[0]}=... (keys are read from the environment only)",
-    )
-
-
-def check_setting(ok: bool, name: str, expected: str, got: object) -> None:
-    if not ok:
-        raise ConfigError(f"{name} must be {expected}; got {got!r}")
-
-
-def is_http_url(value: object) -> bool:
-    return isinstance(value, str) and value.startswith(("http://", "https://"))
-
-
-def _is_int(value: object, low: int) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool) and value >= low
-
-
-def _is_pos(value: object) -> bool:
-    return (isinstance(value, int | float) and not isinstance(value, bool)
-            and math.isfinite(value) and value > 0)
