@@ -165,3 +165,20 @@ def test_aggregate_takes_the_median_item_and_the_modal_action():
         first = next(x for x in g.sort_values("sample")["action_1"] if x in tied)
         assert a["action_1"] == first
     assert list(agg["persona_id"]) == list(rows.loc[rows["sample"] == 0, "persona_id"])
+
+
+def test_the_report_shows_test_retest_or_says_it_was_not_measured(tmp_path):
+    from test_audit_cli import render
+
+    few = generate_personas(120, seed=4)
+    for k, folder in ((2, tmp_path / "two"), (1, tmp_path / "one")):
+        responses, _, _ = collect_responses(few, NoisyRespondent(0.3), matched_ids(few, 30),
+                                            samples=k)
+        folder.mkdir()
+        few.to_parquet(folder / "personas.parquet")
+        responses.to_parquet(folder / "responses.parquet")
+        build_profiles(aggregate_samples(responses), few, "A").to_parquet(
+            folder / "profiles.parquet")
+    two, one = render(tmp_path / "two"), render(tmp_path / "one")
+    assert "Within-persona variance" in two and "2 samples of 150 records" in two
+    assert "test–retest not measured" in one and "--samples 2" in one

@@ -206,9 +206,10 @@ def audit_respondent(personas: pd.DataFrame, r: RespondentTables, *, rng_seed: i
     mapping = str(r.profiles["mapping"].iloc[0]) if not r.profiles.empty else MAIN_MAPPING
     again = retest(samples, lambda one: build_profiles(one, personas, mapping))
     identical = identical_share(samples)
-    fails = failures(spread_, sens, dirs, manip, distinct)
-    fails += retest_failures(again, identical, r.meta.get("temperature"))
-    word, reasons = verdict(sens, fails)
+    unstable = retest_failures(again, identical, r.meta.get("temperature"))
+    word, reasons = verdict(sens, failures(spread_, sens, dirs, manip, distinct) + unstable)
+    if word == NOT_SENSITIVE:  # said beside it: an unreproducible server is its own problem
+        reasons += unstable
     urgency = manip.set_index("target")["shift"].get("q_urgency", np.nan) if not manip.empty \
         else np.nan
     summary = pd.DataFrame([{
