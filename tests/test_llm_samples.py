@@ -100,6 +100,7 @@ def test_the_served_model_is_recorded_by_file_name_never_by_path(server, tmp_pat
     responses, _, stats = collect_responses(personas_frame(3), make(server, tmp_path))
     row = responses.iloc[0]
     assert row["model_file"] == "qwen2.5-0.5b-instruct-q4_k_m.gguf"
+    assert row["model_quant"] == "Q4_K_M"
     assert (row["model_size"], row["model_params"]) == (397807616.0, 494032768.0)
     assert row["server_build"] == "b6123-abcdef0" == row["system_fingerprint"]
     assert stats["served"]["model_file"] == "qwen2.5-0.5b-instruct-q4_k_m.gguf"
@@ -109,6 +110,15 @@ def test_the_served_model_is_recorded_by_file_name_never_by_path(server, tmp_pat
     again, _, stats = collect_responses(personas_frame(3), make(server, tmp_path))
     assert stats["calls"] == 0
     pd.testing.assert_frame_equal(again, responses)
+
+
+@pytest.mark.parametrize("name, tag", [
+    ("Llama-3.2-1B-Instruct-IQ3_XXS.gguf", "IQ3_XXS"), ("gemma-3-4b-it-Q8_0.gguf", "Q8_0"),
+    ("Qwen2-7B-bf16.gguf", "BF16"), ("phi3-mini.gguf", None)])
+def test_the_quantisation_is_the_file_name_tag(name, tag):
+    from popnavshift.responses.llm.identity import quant_tag
+
+    assert quant_tag(name) == tag
 
 
 def test_a_rejected_key_reads_as_authentication_naming_the_url(server, tmp_path):

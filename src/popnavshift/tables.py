@@ -143,6 +143,9 @@ _IDENTITY = (
          "system_fingerprint; llama.cpp's build)", nullable=True, missing=_NOT_TOLD),
     _col("model_file", "str", "file name of the served model (llama.cpp /props model_path, "
          "its name only)", nullable=True, missing=_NOT_TOLD),
+    _col("model_quant", "str", "quantisation of the served model, the tag of its GGUF file "
+         "name (e.g. Q4_K_M, Q8_0, F16)", nullable=True,
+         missing="not told, or the file name carries no quantisation tag"),
     _col("model_size", "float", "size of the served model's file (llama.cpp /v1/models meta)",
          "B", nullable=True, missing=_NOT_TOLD),
     _col("model_params", "float", "parameters of the served model (llama.cpp /v1/models meta)",
@@ -152,7 +155,8 @@ _IDENTITY = (
 )
 #: the identity columns a respondent fills from what its server says of the model, once
 #: per run (:func:`popnavshift.responses.collect.served_details`)
-IDENTITY_COLUMNS: tuple[str, ...] = ("model_file", "model_size", "model_params", "server_build")
+IDENTITY_COLUMNS: tuple[str, ...] = ("model_file", "model_quant", "model_size", "model_params",
+                                     "server_build")
 RESPONSES = declare(
     "responses",
     (

@@ -58,9 +58,23 @@ def props_details(props: Any) -> dict[str, Any]:
     path = props.get("model_path")
     if isinstance(path, str) and path.strip():
         out["model_file"] = file_name(path)
+        quant = quant_tag(out["model_file"])
+        if quant is not None:
+            out["model_quant"] = quant
     if isinstance(props.get("build_info"), str):
         out["server_build"] = props["build_info"]
     return out
+
+
+#: a GGUF file name's quantisation tag (llama.cpp's naming: Q4_K_M, IQ3_XXS, Q8_0, F16, …)
+_QUANT = re.compile(r"(?i)(?<![A-Za-z0-9])(I?Q\d(?:_[A-Z0-9]+)*|BF16|F16|F32)(?![A-Za-z0-9])")
+
+
+def quant_tag(name: str) -> str | None:
+    """The quantisation tag of a GGUF file name, upper-cased (the last one when several);
+    None without one. llama.cpp reports no quantisation, so the file name is the record."""
+    found = _QUANT.findall(name.removesuffix(".gguf"))
+    return found[-1].upper() if found else None
 
 
 def file_name(path: str) -> str:
