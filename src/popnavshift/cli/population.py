@@ -185,7 +185,9 @@ def probe(
         df = run_responses(out, s, show_progress=True)
     stats = json.loads((out / "responses.json").read_text())
     console.print(
-        f"[green]{len(df)} valid responses[/] ({stats['invalid']} invalid, "
+        f"[green]{len(df)} valid responses[/]"
+        + (f" ({samples} samples per persona and variant)" if samples > 1 else "")
+        + f" ({stats['invalid']} invalid, "
         f"{stats['calls']} calls, {stats['cached']} cache hits) in "
         f"{time.perf_counter() - started:.1f} s → {say(out / 'responses.parquet')}"
     )
