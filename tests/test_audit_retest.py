@@ -182,3 +182,22 @@ def test_the_report_shows_test_retest_or_says_it_was_not_measured(tmp_path):
     two, one = render(tmp_path / "two"), render(tmp_path / "one")
     assert "Within-persona variance" in two and "2 samples of 150 records" in two
     assert "test–retest not measured" in one and "--samples 2" in one
+
+
+def test_a_second_respondent_with_samples_is_retested_with_its_base_mapping(personas):
+    from popnavshift.analysis.audit_verdict import audit_tables
+
+    first = asked(personas, RuleRespondent(), 1)
+    pair = personas[personas["persona_id"].isin(matched_ids(personas, 202))]
+    second, _, _ = collect_responses(pair, NoisyRespondent(0.2), matched_ids(personas, 202),
+                                     samples=2)
+    profiles = build_profiles(aggregate_samples(second), personas, "A")
+    rs = [RespondentTables("first", first, build_profiles(first, personas, "A")),
+          RespondentTables("second", second, profiles.assign(mapping="A~noisy-2"))]
+    t = audit_tables(personas, rs, n_perm=N_PERM, n_boot=N_BOOT)
+    v = t["audit_verdict"].set_index("respondent")
+    assert v.loc["first", "retest"].startswith("not measured")
+    assert v.loc["second", "retest"].startswith("2 samples of 404 records")
+    g = t["audit_retest"]
+    assert set(g["respondent"]) == {"second"} and (g["kind"] == "parameter").sum() == 7
+    assert (t["audit_agreement"]["n"] == 404).all()  # the aggregate, one row per record

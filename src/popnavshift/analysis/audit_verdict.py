@@ -47,6 +47,7 @@ import pandas as pd
 
 from ..engine.respondent_tables import MAIN_MAPPING, RespondentTables
 from ..errors import ConfigError
+from ..populations.perturb import ProfileSet
 from ..profiles.mappings import build_profiles
 from ..responses.samples import aggregate_samples, with_samples
 from ..tables import PARAMS
@@ -203,7 +204,9 @@ def audit_respondent(personas: pd.DataFrame, r: RespondentTables, *, rng_seed: i
     manip = manipulation(responses, rng=np.random.default_rng(rng_seed), n_boot=n_boot)
     spread_ = spread(samples)
     distinct = distinct_rows(samples[samples["sample"] == 0], personas)
-    mapping = str(r.profiles["mapping"].iloc[0]) if not r.profiles.empty else MAIN_MAPPING
+    # the mapping the profiles used (a second respondent's set A~<name>-2 maps with A)
+    mapping = (ProfileSet.parse(str(r.profiles["mapping"].iloc[0])).base
+               if not r.profiles.empty else MAIN_MAPPING)
     again = retest(samples, lambda one: build_profiles(one, personas, mapping))
     identical = identical_share(samples)
     unstable = retest_failures(again, identical, r.meta.get("temperature"))
