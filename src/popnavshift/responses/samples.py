@@ -48,9 +48,9 @@ def sample_count(responses: pd.DataFrame) -> int:
 
 
 def aggregate_samples(responses: pd.DataFrame) -> pd.DataFrame:
-    """One answer per persona and variant (module docstring), rows in the order of their
-    sample-0 rows (else first appearance), ``sample`` 0. A one-sample table comes back
-    as it is (the same rows, bit for bit)."""
+    """One answer per persona and variant (module docstring), ``sample`` 0, records in the
+    order they first appear (a collected table lists every sample 0 first). A one-sample
+    table comes back as it is (the same rows, bit for bit)."""
     responses = with_samples(responses)
     if sample_count(responses) == 1:
         return responses
