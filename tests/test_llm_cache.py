@@ -121,3 +121,31 @@ def test_concurrent_threads_share_one_cache(tmp_path):
         assert cache.count() == 200
         assert len(cache.failures()) == 200
         assert cache.stats.hits == 200
+
+
+@pytest.mark.parametrize("version", [1, 2])
+def test_an_older_cache_file_is_migrated_and_still_answers(tmp_path, version):
+    path = tmp_path / "old.sqlite"
+    db = sqlite3.connect(path)
+    served = ", served_model TEXT" if version == 2 else ""
+    db.executescript(f"""
+        CREATE TABLE responses (request_hash TEXT PRIMARY KEY, persona_id TEXT, variant TEXT,
+            model TEXT, raw TEXT, attempts INTEGER, prompt_tokens INTEGER,
+            completion_tokens INTEGER, total_tokens INTEGER, created REAL{served});
+        CREATE TABLE identities (endpoint TEXT, model TEXT, identity TEXT, seen REAL,
+            PRIMARY KEY (endpoint, model));
+        PRAGMA user_version={version};""")
+    db.execute("INSERT INTO responses VALUES (?, 'p1', 'baseline', 'm', ?, 1, 10, 5, 15, 0"
+               + (", NULL)" if version == 2 else ")"), ("k", valid_text()))
+    db.execute("INSERT INTO identities VALUES ('e', 'm', 'abc', 0)")
+    db.commit()
+    db.close()
+    with ResponseCache(path) as cache:
+        hit = cache.get("k")
+        assert hit is not None and hit.fingerprint is None and hit.served_model is None
+        known = cache.identity("e", "m")
+        assert known is not None and (known.key, known.details) == ("abc", {})
+        cache.put("k2", persona_id="p1", variant="baseline", model="m", raw=valid_text(),
+                  attempts=1, tokens=TOKENS, fingerprint="fp_1")
+        assert cache.get("k2").fingerprint == "fp_1"
+    assert sqlite3.connect(path).execute("PRAGMA user_version").fetchone()[0] == 3

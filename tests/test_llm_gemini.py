@@ -170,3 +170,17 @@ def test_concurrency_limit_is_respected(server):
     answers = make(server, max_concurrency=2).answer_all(make_requests(6))
     assert all(a.answer is not None for a in answers)
     assert server.max_in_flight == 2
+
+
+def test_each_sample_sends_its_own_generation_seed(server, tmp_path):
+    import dataclasses
+
+    from popnavshift.responses.respondent import sample_seed
+
+    reqs = make_requests(2)
+    asked = [*reqs, *(dataclasses.replace(r, sample=1) for r in reqs)]
+    answers = make(server, tmp_path, seed=5).answer_all(asked)
+    assert all(a.answer is not None for a in answers) and server.calls == 4
+    seeds = sorted(r.body["generationConfig"]["seed"] for r in server.requests)
+    assert seeds == sorted([5, 5, sample_seed(5, 1), sample_seed(5, 1)])
+    assert make(server, tmp_path, seed=5).answer_all(asked)[3].cached and server.calls == 4

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import time
@@ -272,13 +273,16 @@ def test_second_identical_run_makes_zero_calls(server, tmp_path):
     assert (stats.hits, stats.misses, stats.stored) == (6, 0, 0)
 
 
-def test_replicate_and_model_change_the_key(server, tmp_path):
+def test_sample_and_model_change_the_key(server, tmp_path):
     reqs = make_requests(1)
+    again = [dataclasses.replace(r, sample=1) for r in reqs]
     make(server, tmp_path).answer_all(reqs)
-    make(server, tmp_path, replicate=1).answer_all(reqs)
+    make(server, tmp_path).answer_all(again)
     make(server, tmp_path, model="other").answer_all(reqs)
-    make(server, tmp_path, replicate=1).answer_all(reqs)
+    make(server, tmp_path).answer_all(again)
     assert server.calls == 3
+    seeds = [r.body["seed"] for r in server.requests]
+    assert seeds[0] == 0 and seeds[1] not in (None, 0)  # sample 1 sends its own seed
 
 
 def test_cached_answers_need_no_key(server, tmp_path, monkeypatch):

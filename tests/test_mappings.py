@@ -11,6 +11,7 @@ from popnavshift.profiles.mappings import (
     speed_cap,
 )
 from popnavshift.responses.probes import PROBE_SET_HASH
+from popnavshift.responses.samples import with_samples
 from popnavshift.tables import ACTIONS, BLOCK_ITEMS, PARAM_RANGES, PARAMS, Z_COLUMNS, check_table
 
 LEVELS = [0.0, 0.25, 0.5, 0.75, 1.0]
@@ -30,7 +31,7 @@ def response_rows(draw_levels, draw_actions, n):
         row.update({f"action_{j + 1}": draw_actions[i][j] for j in range(8)})
         row.update({f"q_{k}": draw_levels[i][j] for j, k in enumerate(BLOCK_ITEMS)})
         rows.append(row)
-    return pd.DataFrame(rows)
+    return with_samples(pd.DataFrame(rows))  # one sample each, no served-model identity
 
 
 def personas_for(ids, mobility="Full", access="None"):

@@ -37,6 +37,7 @@ from .progress import progress_bar
 from .responses.collect import collect_responses
 from .responses.probes import PROBE_SET_HASH
 from .responses.respondent import RESPONDENTS, Respondent
+from .responses.samples import AGGREGATION, aggregate_samples
 
 
 @dataclass(frozen=True)
@@ -53,11 +54,15 @@ class PopulationSettings:
     verify_checksums: bool = True
     respondent: str = "rule"
     respondent_options: dict[str, Any] = field(default_factory=dict)
+    #: independent samples per persona and variant (each with its own seed); profiles
+    #: read their aggregate (:func:`popnavshift.responses.samples.aggregate_samples`)
+    samples: int = 1
     matched_n: int = MATCHED_N_DEFAULT
     mappings: tuple[str, ...] = ("A", "B", "C", "D")
     #: second respondent for the respondent-robustness study (matched pair only)
     respondent2: str | None = None
     respondent2_options: dict[str, Any] = field(default_factory=dict)
+    samples2: int = 1
     #: also build the profile sets of the structure study (reassign, shuffle, blocks)
     structure: bool = False
     #: null populations the study runs (:mod:`popnavshift.populations.nulls`), and the
@@ -80,6 +85,12 @@ def read_table(path: Path, stage: str) -> pd.DataFrame:
         return pd.read_parquet(path)
     except Exception as exc:
         raise InputError(f"{path}: not a readable Parquet file ({exc})") from None
+
+
+def read_responses(path: Path) -> pd.DataFrame:
+    """A responses table as profiles and populations read it: one answer per persona and
+    variant, the aggregate of its samples (:func:`aggregate_samples`)."""
+    return aggregate_samples(read_table(path, "responses"))
 
 
 def run_personas(folder: Path, s: PopulationSettings, target: Path | None = None) -> pd.DataFrame:
@@ -117,17 +128,22 @@ def run_responses(folder: Path, s: PopulationSettings, show_progress: bool = Tru
     personas = read_table(folder / "personas.parquet", "personas")
     matched = matched_ids(personas, s.matched_n, s.seed)
     total = len(personas) + len(matched)
-    with progress_bar(f"probing ({respondent.name})", total, show_progress) as advance:
-        responses, invalid, stats = collect_responses(personas, respondent, matched, advance)
+    with progress_bar(f"probing ({respondent.name})", total * s.samples, show_progress,
+                      note=getattr(respondent, "progress_note", None)) as advance:
+        responses, invalid, stats = collect_responses(personas, respondent, matched, advance,
+                                                      s.samples)
     write_parquet(invalid, folder / "responses_invalid.parquet")
     _require_valid(responses, invalid, respondent, folder / "responses_invalid.parquet")
     write_parquet(responses, folder / "responses.parquet")
-    meta = {**stats, **respondent.describe(), "probe_set": PROBE_SET_HASH, "matched_n": s.matched_n}
+    meta = {**stats, **respondent.describe(), "probe_set": PROBE_SET_HASH, "matched_n": s.matched_n,
+            "aggregation": AGGREGATION}
     if s.respondent2 is not None:  # the matched pair again, with the second respondent
         second = respondent_from(s.respondent2, s.respondent2_options, folder)
         pair = personas[personas["persona_id"].isin(matched)]
-        with progress_bar(f"probing ({second.name}, 2nd)", 2 * len(pair), show_progress) as adv:
-            alt, alt_invalid, alt_stats = collect_responses(pair, second, matched, adv)
+        with progress_bar(f"probing ({second.name}, 2nd)", 2 * len(pair) * s.samples2,
+                          show_progress, note=getattr(second, "progress_note", None)) as adv:
+            alt, alt_invalid, alt_stats = collect_responses(pair, second, matched, adv,
+                                                            s.samples2)
         write_parquet(alt_invalid, folder / "responses_alt_invalid.parquet")
         _require_valid(alt, alt_invalid, second, folder / "responses_alt_invalid.parquet")
         write_parquet(alt, folder / "responses_alt.parquet")
@@ -152,7 +168,7 @@ def _require_valid(responses: pd.DataFrame, invalid: pd.DataFrame, respondent,
 def run_profiles(folder: Path, s: PopulationSettings) -> pd.DataFrame:
 
     personas = read_table(folder / "personas.parquet", "personas")
-    responses = read_table(folder / "responses.parquet", "responses")
+    responses = read_responses(folder / "responses.parquet")
     sets = [build_profiles(responses, personas, m) for m in s.mappings]
     if s.structure:
         sets.append(reassign_profiles(sets[s.mappings.index("A")], s.seed))
@@ -160,7 +176,7 @@ def run_profiles(folder: Path, s: PopulationSettings) -> pd.DataFrame:
             one = build_profiles(single_block_responses(responses, block), personas, "A")
             sets.append(one.assign(mapping=label("block", block)))
     if s.respondent2 is not None:
-        alt = read_table(folder / "responses_alt.parquet", "responses")
+        alt = read_responses(folder / "responses_alt.parquet")
         sets.append(build_profiles(alt, personas, "A").assign(mapping=s.respondent2_label))
     profiles = pd.concat(sets, ignore_index=True)
     write_parquet(profiles, folder / "profiles.parquet")
@@ -170,7 +186,7 @@ def run_profiles(folder: Path, s: PopulationSettings) -> pd.DataFrame:
 def run_populations(folder: Path, s: PopulationSettings) -> pd.DataFrame:
 
     personas = read_table(folder / "personas.parquet", "personas")
-    responses = read_table(folder / "responses.parquet", "responses")
+    responses = read_responses(folder / "responses.parquet")
     profiles = read_table(folder / "profiles.parquet", "profiles")
     matched = matched_ids(personas, s.matched_n, s.seed)
     members = membership(

@@ -18,13 +18,14 @@ _SECRETS: set[str] = set()
 _LOCK = threading.Lock()
 #: ``Bearer <token>`` (any token) and ``sk-…`` keys (OpenAI, Anthropic, most proxies)
 _TOKEN_SHAPES = re.compile(r"(?i)\bbearer\s+[^\s\"',;]+|\bsk-[A-Za-z0-9_\-]{16,}")
-#: shorter strings are not masked (they would garble ordinary words)
+#: shorter secrets are masked only where they stand alone (not inside a longer word,
+#: which a 3-letter key would garble), longer ones wherever they appear
 _MIN_SECRET = 6
 
 
 def register_secret(value: str | None) -> None:
     """Mask ``value`` in every later :func:`redact` call (for the life of the process)."""
-    if value and len(value) >= _MIN_SECRET:
+    if value:
         with _LOCK:
             _SECRETS.add(value)
 
@@ -34,7 +35,10 @@ def redact(text: str) -> str:
     with _LOCK:
         secrets = sorted(_SECRETS, key=len, reverse=True)  # longest first: no partial leftovers
     for secret in secrets:
-        text = text.replace(secret, MASK)
+        if len(secret) >= _MIN_SECRET:
+            text = text.replace(secret, MASK)
+        else:
+            text = re.sub(rf"(?<![A-Za-z0-9]){re.escape(secret)}(?![A-Za-z0-9])", MASK, text)
 
     def mask(match: re.Match[str]) -> str:
         word = match.group(0)

@@ -132,23 +132,50 @@ MAPPING_DOC = (
 
 _VARIANT = _col("variant", "str", "persona variant asked: baseline, or deadline (time "
                 "pressure set to Deadline, the matched intervention)")
+_SAMPLE = _col("sample", "int", "independent sample of the same question, from 0 (a study's "
+               "`samples: k` asks each persona k times, each with its own seed; profiles "
+               "read the per-item median across samples)")
+_NOT_TOLD = "the respondent or server does not say (rule respondent, a server that omits it)"
+#: what the server said of the model that answered (docs/llm.md, "The served model's
+#: identity"): file name only, never a path
+_IDENTITY = (
+    _col("system_fingerprint", "str", "the server's build fingerprint of the reply (OpenAI "
+         "system_fingerprint; llama.cpp's build)", nullable=True, missing=_NOT_TOLD),
+    _col("model_file", "str", "file name of the served model (llama.cpp /props model_path, "
+         "its name only)", nullable=True, missing=_NOT_TOLD),
+    _col("model_quant", "str", "quantisation of the served model, the tag of its GGUF file "
+         "name (e.g. Q4_K_M, Q8_0, F16)", nullable=True,
+         missing="not told, or the file name carries no quantisation tag"),
+    _col("model_size", "float", "size of the served model's file (llama.cpp /v1/models meta)",
+         "B", nullable=True, missing=_NOT_TOLD),
+    _col("model_params", "float", "parameters of the served model (llama.cpp /v1/models meta)",
+         "1", nullable=True, missing=_NOT_TOLD),
+    _col("server_build", "str", "the server's build (llama.cpp /props build_info)",
+         nullable=True, missing=_NOT_TOLD),
+)
+#: the identity columns a respondent fills from what its server says of the model, once
+#: per run (:func:`popnavshift.responses.collect.served_details`)
+IDENTITY_COLUMNS: tuple[str, ...] = ("model_file", "model_quant", "model_size", "model_params",
+                                     "server_build")
 RESPONSES = declare(
     "responses",
     (
         _col("persona_id", "str", "the persona answering", refers=PERSONA_REF),
         _VARIANT,
+        _SAMPLE,
         _col("respondent", "str", "respondent name (rule, openai, gemini, a plug-in)"),
         _col("model", "str", "the model asked for, with the respondent's settings"),
         _col("served_model", "str", "the model that answered, as the server named it",
              nullable=True, missing="the respondent or server names no model (rule "
              "respondent, a server that omits it)"),
+        *_IDENTITY,
         _col("probe_set", "str", "hash of the probe texts and attributes asked"),
         *(_col(c, "str", f"action chosen in probe P{c[7:]}: one of {', '.join(ACTIONS)}")
           for c in ACTION_COLUMNS),
         *(_col(c, "float", f"self-rating '{c[2:]}': very_low … very_high as 0, .25, .5, .75, 1",
                "1") for c in Q_COLUMNS),
     ),
-    ("persona_id", "variant"),
+    ("persona_id", "variant", "sample"),
     doc="one valid answer of a respondent to the 8 probes and the 7-item block",
 )
 
@@ -157,11 +184,12 @@ RESPONSES_INVALID = declare(
     (
         _col("persona_id", "str", "the persona asked", refers=PERSONA_REF),
         _VARIANT,
+        _SAMPLE,
         _col("error", "str", "why the answer stayed invalid after the re-asks"),
         _col("raw", "str", "the respondent's last raw reply", nullable=True,
              missing="no reply was received (transport failure)"),
     ),
-    ("persona_id", "variant"),
+    ("persona_id", "variant", "sample"),
     doc="one record whose answer stayed invalid (listed, never dropped silently)",
 )
 

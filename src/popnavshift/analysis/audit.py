@@ -317,7 +317,7 @@ def manipulation(responses: pd.DataFrame, *, rng: np.random.Generator,
     return pd.DataFrame(rows)
 
 
-def _kappa(a: np.ndarray, b: np.ndarray) -> float:
+def cohen_kappa(a: np.ndarray, b: np.ndarray) -> float:
     """Cohen's κ of two label arrays (NaN when chance agreement is 1)."""
     labels = np.union1d(a, b)
     pa = np.array([(a == x).mean() for x in labels])
@@ -338,7 +338,7 @@ def agreement(first: pd.DataFrame, second: pd.DataFrame, first_profiles: pd.Data
     for col in ACTION_COLUMNS:
         a, b = m[f"{col}_1"].astype(str).to_numpy(), m[f"{col}_2"].astype(str).to_numpy()
         rows.append({"target": col, "kind": "action", "n": len(m), "agree": float((a == b).mean())
-                     if len(m) else np.nan, "kappa": _kappa(a, b) if len(m) else np.nan})
+                     if len(m) else np.nan, "kappa": cohen_kappa(a, b) if len(m) else np.nan})
     for col in Q_COLUMNS:
         a, b = m[f"{col}_1"].to_numpy(float), m[f"{col}_2"].to_numpy(float)
         rows.append({"target": col, "kind": "item", "n": len(m),

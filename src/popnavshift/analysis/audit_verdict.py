@@ -21,7 +21,17 @@ The statistics are in :mod:`.audit`; the thresholds are here, each with its reas
   :data:`MIN_DISTINCT_SHARE` of the distinct persona records, an expected direction
   that is flat or reversed, or a matched intervention that does not raise urgency by
   :data:`MIN_URGENCY_SHIFT` (its interval above 0) or reverses a declared direction;
+* **weak** too when test–retest (:mod:`.audit_retest`, with 2 or more samples per
+  persona) finds a block item, the action score or a motion parameter with an ICC below
+  :data:`MIN_ICC` (what a persona is made of changes from one asking to the next more
+  than between personas), or a server at temperature 0 whose samples differ (**not
+  reproducible**); with one sample, test–retest is *not measured*, and the verdict says
+  how to measure it;
 * **usable** — nothing fails.
+
+With several samples per persona, every statistic but the spread (all samples pooled)
+and the distinct rows (sample 0) reads the per-persona aggregate the profiles were built
+from (:func:`popnavshift.responses.samples.aggregate_samples`).
 
 With so few personas that a shuffle alone explains :data:`MAX_NULL_R2` of any answer,
 a respondent without a persona-sensitive answer reads **weak** ("too few personas"),
@@ -35,8 +45,11 @@ import math
 import numpy as np
 import pandas as pd
 
-from ..engine.respondent_tables import RespondentTables
+from ..engine.respondent_tables import MAIN_MAPPING, RespondentTables
 from ..errors import ConfigError
+from ..populations.perturb import ProfileSet
+from ..profiles.mappings import build_profiles
+from ..responses.samples import aggregate_samples, with_samples
 from ..tables import PARAMS
 from .audit import (
     ANSWER_TARGETS,
@@ -52,12 +65,16 @@ from .audit import (
     sensitivity,
     spread,
 )
+from .audit_retest import HOW_TO_MEASURE, identical_share, retest
 
 USABLE, WEAK, NOT_SENSITIVE = "usable", "weak", "not persona-sensitive"
 ALPHA = 0.05  # family-wise level of the sensitivity tests, per family
 MIN_EXCESS_R2 = 0.05  # R² the persona fields must explain beyond the shuffled null's mean
 MIN_DISTINCT_SHARE = 0.5  # distinct answer rows per distinct persona record, at least
 MIN_URGENCY_SHIFT = LEVEL / 2  # deadline − baseline urgency: half a level, at least
+#: test–retest ICC below which a block item, the action score or a motion parameter fails:
+#: Koo & Li (2016) read ICC < 0.5 as poor reliability
+MIN_ICC = 0.5
 #: below this many personas per persona-field column the test cannot see a dependence:
 #: the shuffled null's expected R², columns / (n − 1), would reach this share
 MAX_NULL_R2 = 0.5
@@ -110,6 +127,34 @@ def failures(spread_: pd.DataFrame, sens: pd.DataFrame, dirs: pd.DataFrame,
     return out
 
 
+def retest_failures(table: pd.DataFrame, identical: float, temperature: object) -> list[str]:
+    """What test–retest finds wrong (module docstring); nothing when it was not measured."""
+    if table.empty:
+        return []
+    out = []
+    low = table[(table["kind"] != "action") & (table["icc"] < MIN_ICC)]
+    if not low.empty:
+        out.append(f"test–retest ICC below {MIN_ICC:g} over {int(table['samples'].iloc[0])} "
+                   "samples: " + ", ".join(f"{r.target} {r.icc:.2f}" for r in low.itertuples()))
+    if temperature == 0 and identical < 1:
+        out.append(f"server not reproducible: at temperature 0, {1 - identical:.0%} of "
+                   f"records differ across their {int(table['samples'].iloc[0])} samples "
+                   "(each sent with its own seed; for llama.cpp set extra_body "
+                   "{cache_prompt: false}, docs/llm.md)")
+    return out
+
+
+def retest_summary(table: pd.DataFrame, identical: float) -> str:
+    """One phrase for the verdict row: how test–retest came out, or how to measure it."""
+    if table.empty:
+        return f"not measured (one sample per persona; {HOW_TO_MEASURE})"
+    scored = table[table["kind"] != "action"]
+    worst = scored.loc[scored["icc"].idxmin()] if scored["icc"].notna().any() else None
+    lowest = "" if worst is None else f", lowest ICC {worst['icc']:.2f} ({worst['target']})"
+    return (f"{int(table['samples'].iloc[0])} samples of {int(table['records'].iloc[0])} "
+            f"records, {identical:.0%} identical{lowest}")
+
+
 def verdict(sens: pd.DataFrame, fails: list[str]) -> tuple[str, list[str]]:
     """(verdict, reasons): ``not persona-sensitive`` when no answer is, else ``weak``
     with ``fails``, else ``usable``; ``weak`` too, saying so, when no answer is and the
@@ -140,8 +185,11 @@ def audit_respondent(personas: pd.DataFrame, r: RespondentTables, *, rng_seed: i
     The persona population is the respondent's baseline answers; its motion parameters
     are the profiles' baseline rows of the same personas (all seven are left out when
     one of these personas has no profile). ``rng_seed`` seeds the permutations and
-    bootstraps (fresh generators)."""
-    base = baseline(r.responses)
+    bootstraps (fresh generators). With several samples per persona the statistics read
+    their aggregate, and test–retest (``retest``) compares them (module docstring)."""
+    samples = with_samples(r.responses)
+    responses = aggregate_samples(samples)
+    base = baseline(responses)
     who = personas.set_index("persona_id").reindex(base["persona_id"]).reset_index()
     prof = pd.DataFrame()
     if not r.profiles.empty:
@@ -153,9 +201,18 @@ def audit_respondent(personas: pd.DataFrame, r: RespondentTables, *, rng_seed: i
                                       rng=np.random.default_rng(rng_seed), n_perm=n_perm))
     values = pd.concat([base, prof[list(PARAMS)]], axis=1) if not prof.empty else base
     dirs = directions(who, values, rng=np.random.default_rng(rng_seed), n_boot=n_boot)
-    manip = manipulation(r.responses, rng=np.random.default_rng(rng_seed), n_boot=n_boot)
-    spread_, distinct = spread(r.responses), distinct_rows(r.responses, personas)
-    word, reasons = verdict(sens, failures(spread_, sens, dirs, manip, distinct))
+    manip = manipulation(responses, rng=np.random.default_rng(rng_seed), n_boot=n_boot)
+    spread_ = spread(samples)
+    distinct = distinct_rows(samples[samples["sample"] == 0], personas)
+    # the mapping the profiles used (a second respondent's set A~<name>-2 maps with A)
+    mapping = (ProfileSet.parse(str(r.profiles["mapping"].iloc[0])).base
+               if not r.profiles.empty else MAIN_MAPPING)
+    again = retest(samples, lambda one: build_profiles(one, personas, mapping))
+    identical = identical_share(samples)
+    unstable = retest_failures(again, identical, r.meta.get("temperature"))
+    word, reasons = verdict(sens, failures(spread_, sens, dirs, manip, distinct) + unstable)
+    if word == NOT_SENSITIVE:  # said beside it: an unreproducible server is its own problem
+        reasons += unstable
     urgency = manip.set_index("target")["shift"].get("q_urgency", np.nan) if not manip.empty \
         else np.nan
     summary = pd.DataFrame([{
@@ -167,10 +224,12 @@ def audit_respondent(personas: pd.DataFrame, r: RespondentTables, *, rng_seed: i
         "parameters": int((sens["family"] == "parameter").sum()),
         "directions_as_expected": int((dirs["outcome"] == "as expected").sum())
         if not dirs.empty else 0,
-        "directions": len(dirs), "urgency_shift": urgency, "verdict": word,
+        "directions": len(dirs), "urgency_shift": urgency,
+        "samples": int(samples.groupby(["persona_id", "variant"])["sample"].nunique().max()),
+        "retest": retest_summary(again, identical), "verdict": word,
         "reasons": "; ".join(reasons)}])
     tables = {"spread": spread_, "sensitivity": sens, "directions": dirs,
-              "manipulation": manip, "verdict": summary}
+              "manipulation": manip, "retest": again, "verdict": summary}
     return {k: v.assign(respondent=r.role) if not v.empty else v for k, v in tables.items()}
 
 
@@ -187,11 +246,13 @@ def audit_tables(personas: pd.DataFrame, respondents: list[RespondentTables], *,
     per = [audit_respondent(personas, r, rng_seed=rng_seed, n_perm=n_perm, n_boot=n_boot)
            for r in respondents]
     out = {}
-    for name in ("verdict", "spread", "sensitivity", "directions", "manipulation"):
+    for name in ("verdict", "spread", "sensitivity", "directions", "manipulation", "retest"):
         frames = [t[name] for t in per if not t[name].empty]
         if frames:
             out[f"audit_{name}"] = pd.concat(frames, ignore_index=True)
     if len(respondents) == 2:
         a, b = respondents
-        out["audit_agreement"] = agreement(a.responses, b.responses, a.profiles, b.profiles)
+        out["audit_agreement"] = agreement(aggregate_samples(with_samples(a.responses)),
+                                           aggregate_samples(with_samples(b.responses)),
+                                           a.profiles, b.profiles)
     return out

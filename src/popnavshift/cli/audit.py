@@ -50,6 +50,10 @@ def audit(
       time_pressure vs urgency (Spearman, 95% bootstrap interval);
     - the matched intervention: deadline − baseline shift per item
       (paired, 95% interval);
+    - test–retest, with 2 or more samples per persona (--samples k at
+      the probe stage): κ per probe, ICC per item and motion parameter
+      (within- against between-persona variance); at temperature 0,
+      samples that differ read "server not reproducible";
     - the two respondents' agreement, when there are two.
 
     Each respondent gets a verdict: usable; weak (what fails is listed);
@@ -122,6 +126,7 @@ def _print_respondent(t: dict[str, pd.DataFrame], r) -> None:
         d.add_row(f"{x.field} → {x.target}", x.expected,
                   f"{x.rho:+.2f} [{x.ci_low:+.2f}, {x.ci_high:+.2f}]", _outcome(x.outcome))
     console.print(d)
+    _print_retest(_rows(t, "retest", r.respondent), r.retest)
     m = _rows(t, "manipulation", r.respondent)
     if m.empty:
         console.print("matched intervention: no persona was asked both variants.")
@@ -134,6 +139,24 @@ def _print_respondent(t: dict[str, pd.DataFrame], r) -> None:
     console.print(mt)
     changed = m.loc[m["target"] == "actions", "changed"].iloc[0]
     console.print(f"probe actions changed by the deadline: {changed:.0%}", highlight=False)
+
+
+def _print_retest(g: pd.DataFrame, summary: str) -> None:
+    """The test–retest table, or the line saying it was not measured and how to."""
+    if g.empty:
+        console.print(f"test–retest: {say(summary)}", highlight=False)
+        return
+    from ..analysis.audit_verdict import MIN_ICC
+
+    t = Table("answer / parameter", "all samples agree", "κ / ICC", "within var",
+              "between var", title=f"test–retest: {say(summary)}")
+    for x in g.itertuples(index=False):
+        stat = f"κ {_num(x.kappa)}" if x.kind == "action" else (
+            f"ICC {_num(x.icc)}" if not x.icc < MIN_ICC else f"[red]ICC {_num(x.icc)}[/]")
+        t.add_row(x.target, _num(x.agree, "{:.0%}"), stat,
+                  _num(getattr(x, "within_var", None), "{:.4f}"),
+                  _num(getattr(x, "between_var", None), "{:.4f}"))
+    console.print(t)
 
 
 def _outcome(text: str) -> str:

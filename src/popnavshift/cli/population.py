@@ -126,6 +126,11 @@ def probe(
     respondent_seed: Annotated[
         int | None, typer.Option(min=0, help="Respondent seed (LLM seed or rule noise).")
     ] = None,
+    samples: Annotated[
+        int, typer.Option(min=1, max=100, help="Independent samples per persona, each sent "
+                          "with its own seed (the audit's test–retest needs 2 or more; the "
+                          "rule respondent gives identical samples).")
+    ] = 1,
     concurrency: Annotated[int | None, _opt("Concurrent LLM requests.", min=1, max=256)] = None,
     rate_limit: Annotated[
         float | None, _opt("LLM requests per second.", callback=finite_range(0, above=True))
@@ -173,13 +178,16 @@ def probe(
     )
     if respondent == "rule":
         opts = {k: v for k, v in opts.items() if k == "seed"}
-    s = _settings(respondent=respondent, respondent_options=opts, matched_n=matched_n, seed=seed)
+    s = _settings(respondent=respondent, respondent_options=opts, matched_n=matched_n, seed=seed,
+                  samples=samples)
     started = time.perf_counter()
     with study_lock(out):
         df = run_responses(out, s, show_progress=True)
     stats = json.loads((out / "responses.json").read_text())
     console.print(
-        f"[green]{len(df)} valid responses[/] ({stats['invalid']} invalid, "
+        f"[green]{len(df)} valid responses[/]"
+        + (f" ({samples} samples per persona and variant)" if samples > 1 else "")
+        + f" ({stats['invalid']} invalid, "
         f"{stats['calls']} calls, {stats['cached']} cache hits) in "
         f"{time.perf_counter() - started:.1f} s → {say(out / 'responses.parquet')}"
     )

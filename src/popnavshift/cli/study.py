@@ -231,6 +231,12 @@ def run(
         ),
     ] = None,
     report: Annotated[bool, typer.Option(help="Write the analysis report at the end.")] = True,
+    samples: Annotated[
+        int | None,
+        typer.Option(min=1, max=100, help="Independent samples per persona, each with its "
+                     "own seed, in place of the study's `respondent: {samples: k}` (the "
+                     "respondent audit's test–retest needs 2 or more)."),
+    ] = None,
 ) -> None:
     """Run every stage of a study that is not already done; resumable.
 
@@ -245,6 +251,9 @@ def run(
 
     check_workers(workers, executor)
     s = load_study(study or "paper")
+    if samples is not None:  # part of the study as run: its config hash and manifest say so
+        s = s.model_copy(update={"respondent": s.respondent.model_copy(
+            update={"samples": samples})})
     target = folder(out or default_folder(s.name))
     with study_lock(target):
         report_ = run_study(s, target, workers=workers, executor_name=executor, address=address)

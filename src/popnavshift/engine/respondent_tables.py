@@ -10,14 +10,16 @@ second respondent's profile set (``A~<respondent>-2``) for the second.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 
 from ..errors import InputError
 from ..pipeline import read_table
 from ..populations.perturb import ProfileSet
+from ..responses.samples import with_samples
 from ..tables import check_table
 from .study import study_from_dict
 
@@ -33,6 +35,8 @@ class RespondentTables:
     role: str
     responses: pd.DataFrame
     profiles: pd.DataFrame
+    #: the respondent's settings as responses.json records them (temperature, samples, …)
+    meta: dict[str, Any] = field(default_factory=dict)
 
 
 def _profile_set(profiles: pd.DataFrame, second: bool, main: str) -> pd.DataFrame:
@@ -77,15 +81,19 @@ def read_respondent_tables(folder: Path) -> tuple[pd.DataFrame, list[RespondentT
     has_profiles = (folder / "profiles.parquet").exists()
     profiles = (check_table(read_table(folder / "profiles.parquet", "profiles"), "profiles")
                 if has_profiles else None)
+    meta_path = folder / "responses.json"
+    meta = json.loads(meta_path.read_text("utf-8")) if meta_path.exists() else {}
+    metas = {"first": meta, "second": meta.get("second") or {}}
     out = []
     for role, file in (("first", "responses"), ("second", "responses_alt")):
         if not (folder / f"{file}.parquet").exists():
             continue
-        responses = check_table(read_table(folder / f"{file}.parquet", "responses"), "responses")
+        responses = check_table(with_samples(read_table(folder / f"{file}.parquet",
+                                                        "responses")), "responses")
         if not (responses["variant"] == "baseline").any():
             raise InputError(f"{folder / file}.parquet has no baseline answer to audit",
                              hint="run the probe stage again")
         sets = (_profile_set(profiles, role == "second", main) if profiles is not None
                 else pd.DataFrame(columns=["persona_id", "variant", "mapping"]))
-        out.append(RespondentTables(role, responses, sets))
+        out.append(RespondentTables(role, responses, sets, metas[role]))
     return personas, out

@@ -69,10 +69,12 @@ def population_settings(study: Study) -> PopulationSettings:
         verify_checksums=study.personas.verify_checksums,
         respondent=study.respondent.name,
         respondent_options=dict(study.respondent.options),
+        samples=study.respondent.samples,
         matched_n=study.matched_n,
         mappings=tuple(dict.fromkeys(("A", *study.mappings))),
         respondent2=None if second is None else second.name,
         respondent2_options={} if second is None else dict(second.options),
+        samples2=1 if second is None else second.samples,
         structure=any(ProfileSet.parse(m).is_structure for m in used),
         nulls=nulls,
         null_mappings=tuple(sorted({m for part in null_parts for m in part.mappings})),
@@ -168,6 +170,14 @@ def _holds_exactly(folder: Path, runs: list) -> bool:
     return len(have) == len(runs)
 
 
+#: what the manifest keeps of responses.json: who answered, where (``endpoint``: the URL
+#: requests went to), with which settings, how many samples and how they were aggregated,
+#: and what the server said of its model (file name, size, parameters, build, fingerprints)
+MANIFEST_RESPONDENT = ("respondent", "model", "served_models", "seed", "scale", "endpoint",
+                       "temperature", "max_tokens", "extra_body", "samples", "aggregation",
+                       "system_fingerprints", "served")
+
+
 def write_manifest(
     folder: Path,
     study: Study,
@@ -194,12 +204,7 @@ def write_manifest(
             },
             "seeds": {"study": study.seed},
             "probe_set": PROBE_SET_HASH,
-            "respondent": {
-                k: v
-                for k, v in responses_meta.items()
-                if k in ("respondent", "model", "served_models", "seed", "scale", "base_url",
-                         "temperature", "max_tokens")
-            },
+            "respondent": {k: v for k, v in responses_meta.items() if k in MANIFEST_RESPONDENT},
             "counts": counts,
             "tables": {"runs": n_runs, "pedestrians": n_peds},
             "timings": {

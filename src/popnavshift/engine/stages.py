@@ -67,6 +67,13 @@ def _population_settings(s: PopulationSettings) -> list[Any]:
     return [s.matched_n, *nulls]
 
 
+def _response_settings(s: PopulationSettings) -> list[Any]:
+    asked = [s.respondent, s.respondent_options, s.matched_n, PROBE_SET_HASH, s.respondent2,
+             s.respondent2_options]
+    # samples only when set: the stamps of one-sample folders stay valid
+    return asked if (s.samples, s.samples2) == (1, 1) else [*asked, s.samples, s.samples2]
+
+
 def _write_episodes(folder: Path, s: PopulationSettings, _progress: bool) -> None:
     write_parquet(episodes_table(all_episodes(seed=s.seed)), folder / "episodes.parquet")
 
@@ -74,10 +81,7 @@ def _write_episodes(folder: Path, s: PopulationSettings, _progress: bool) -> Non
 STAGES: tuple[Stage, ...] = (
     Stage("personas", "personas.parquet", None, _persona_settings,
           lambda folder, s, _progress: run_personas(folder, s)),
-    Stage("responses", "responses.parquet", "personas",
-          lambda s: [s.respondent, s.respondent_options, s.matched_n, PROBE_SET_HASH,
-                     s.respondent2, s.respondent2_options],
-          run_responses),
+    Stage("responses", "responses.parquet", "personas", _response_settings, run_responses),
     Stage("profiles", "profiles.parquet", "responses",
           lambda s: [list(s.mappings), s.structure],
           lambda folder, s, _progress: run_profiles(folder, s)),

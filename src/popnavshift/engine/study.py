@@ -53,6 +53,18 @@ class PersonaSource(Strict):
 class RespondentSpec(Strict):
     name: str = "rule"
     options: dict[str, Any] = Field(default_factory=dict)
+    #: independent samples per persona and variant, each sent with its own seed; the
+    #: profiles read their per-item median (docs/method.md), the audit their test–retest
+    samples: int = Field(1, ge=1, le=100)
+
+    @field_validator("options")
+    @classmethod
+    def _no_replicate(cls, v: dict[str, Any]) -> dict[str, Any]:
+        if "replicate" in v:  # it changed only the cache key: a sample that was not one
+            raise ValueError("options.replicate was removed (it changed the cache key, not "
+                             "the request); ask independent samples with `samples: k`, "
+                             "each sent with its own seed")
+        return v
 
 
 class EpisodeSelection(Strict):

@@ -12,6 +12,7 @@ from ..analysis.audit_verdict import (
     ALPHA,
     MIN_DISTINCT_SHARE,
     MIN_EXCESS_R2,
+    MIN_ICC,
     MIN_URGENCY_SHIFT,
     USABLE,
 )
@@ -70,7 +71,10 @@ METHOD = (f"Computed from the study's own answer tables, nothing asked again. An
           f"expected direction whose 95% interval does not "
           f"exclude 0 on its side, or a deadline shift of urgency below "
           f"{MIN_URGENCY_SHIFT:+.3f} (half a level) or a declared item moved against its "
-          "direction. Test–retest needs several samples per persona and is not measured.")
+          f"direction; with two or more samples per persona, also a block item, the action "
+          f"score or a motion parameter whose test–retest ICC is below {MIN_ICC:g}, or a "
+          f"server at temperature 0 whose samples differ (not reproducible). With one sample "
+          f"per persona, test–retest is not measured (--samples 2 measures it).")
 
 
 def audit_section(tables: dict[str, pd.DataFrame]) -> Section:
@@ -110,8 +114,28 @@ def audit_section(tables: dict[str, pd.DataFrame]) -> Section:
                               csv="tables/audit_sensitivity.csv", collapsed=True))
     _directions(s, tables.get("audit_directions"))
     _manipulation(s, tables.get("audit_manipulation"))
+    _retest(s, v, tables.get("audit_retest"))
     _agreement(s, tables.get("audit_agreement"))
     return s
+
+
+def _retest(s: Section, v: pd.DataFrame, g: pd.DataFrame | None) -> None:
+    """Test–retest per respondent: its table, or a line saying it was not measured."""
+    for r in v.itertuples():
+        rows = g[g["respondent"] == r.respondent] if g is not None and not g.empty else None
+        if rows is None or rows.empty:
+            s.blocks.append(para(f"{_who(r)}: test–retest {r.retest}.", "note"))
+            continue
+        cells = [[x.target, x.kind, pct(x.agree),
+                  f"κ {fmt(x.kappa)}" if x.kind == "action" else
+                  Cell(f"ICC {fmt(x.icc)}", "bad" if x.icc < MIN_ICC else "ok"),
+                  fmt(getattr(x, "within_var", None), "{:.4f}"),
+                  fmt(getattr(x, "between_var", None), "{:.4f}")] for x in rows.itertuples()]
+        s.blocks.append(table(["Answer / parameter", "Kind", "All samples agree",
+                               "κ / ICC", "Within-persona variance",
+                               "Between-persona variance"], cells,
+                              caption=f"{_who(r)}: test–retest, {r.retest}",
+                              csv="tables/audit_retest.csv", collapsed=True))
 
 
 def _directions(s: Section, d: pd.DataFrame | None) -> None:

@@ -13,6 +13,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
+from ..hashing import stable_seed
 from ..registry import Registry
 
 
@@ -23,6 +24,9 @@ class ProbeRequest:
     persona_id: str
     variant: str  # "baseline" | "deadline"
     persona: Mapping[str, Any]
+    #: independent sample index, from 0: a network respondent sends sample s with its own
+    #: seed (:func:`sample_seed`); a deterministic respondent answers every sample alike
+    sample: int = 0
 
 
 @dataclass
@@ -39,9 +43,19 @@ class Answer:
     cached: bool = False
     tokens: dict[str, int] = field(default_factory=dict)  # summed over all attempts
     served_model: str | None = None  # the model the server says answered (None: not told)
+    #: the server's build fingerprint for this reply (OpenAI ``system_fingerprint``)
+    fingerprint: str | None = None
 
 
 Progress = Callable[[int], None]
+
+
+def sample_seed(seed: int, sample: int) -> int:
+    """The seed sent for independent sample ``sample`` of a respondent seeded ``seed``:
+    ``seed`` itself for sample 0 (a one-sample study asks what it always asked, and its
+    cache still answers), else a stable hash of both below 2**31 (servers take a 32-bit
+    seed; llama.cpp an unsigned one)."""
+    return seed if sample == 0 else stable_seed("sample", seed, sample) % (1 << 31)
 
 
 class Respondent(ABC):

@@ -124,6 +124,10 @@ def traits(persona: Mapping[str, Any]) -> dict[str, float]:
 class RuleRespondent(Respondent):
     """Deterministic surrogate respondent; ``seed`` selects the noise draw.
 
+    Independent samples (``samples: k``) are identical: the noise is keyed by the
+    persona and ``seed``, not by the sample, so the audit's test–retest reads perfect
+    agreement (what a deterministic respondent should show).
+
     ``scale`` multiplies every trait weight (a second, documented parameter set
     for respondent-robustness studies uses ``scale != 1`` and another seed).
     """

@@ -80,7 +80,9 @@ def parse_answer(text: str) -> dict[str, Any]:
     try:
         obj = json.loads(body)
     except json.JSONDecodeError as exc:
-        raise RespondentError(f"response is not valid JSON ({exc.msg} at char {exc.pos})") from None
+        # "Unterminated string starting at" ends with "at" already: no "at at char"
+        where = exc.msg.removesuffix(" at")
+        raise RespondentError(f"response is not valid JSON ({where} at char {exc.pos})") from None
     if not isinstance(obj, dict):
         raise RespondentError("response is not a JSON object")
     _exact_keys(obj, ("actions", "block"), "response")

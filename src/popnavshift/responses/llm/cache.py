@@ -17,11 +17,12 @@ tiny next to a network round trip).
 
 from __future__ import annotations
 
+import json
 import logging
 import sqlite3
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +32,9 @@ from ..schema import parse_answer
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 2  # 2: responses.served_model (a version-1 file is migrated)
+#: 2: responses.served_model; 3: responses.system_fingerprint, identities.details (older
+#: files are migrated on open)
+SCHEMA_VERSION = 3
 
 _DDL = """
 CREATE TABLE IF NOT EXISTS responses (
@@ -45,7 +48,8 @@ CREATE TABLE IF NOT EXISTS responses (
     completion_tokens INTEGER NOT NULL,
     total_tokens INTEGER NOT NULL,
     created REAL NOT NULL,
-    served_model TEXT
+    served_model TEXT,
+    system_fingerprint TEXT
 );
 CREATE INDEX IF NOT EXISTS responses_persona ON responses (persona_id, variant);
 CREATE TABLE IF NOT EXISTS failures (
@@ -65,17 +69,20 @@ CREATE TABLE IF NOT EXISTS identities (
     model TEXT NOT NULL,
     identity TEXT NOT NULL,
     seen REAL NOT NULL,
+    details TEXT,
     PRIMARY KEY (endpoint, model)
 );
 """
 
 
-def request_key(endpoint: str, model: str, body: dict[str, Any], replicate: int = 0,
+def request_key(endpoint: str, model: str, body: dict[str, Any], sample: int = 0,
                 identity: str | None = None) -> str:
-    """sha256 hex of the exact request and, when the server named it, the identity of the
-    model it serves (so a model swapped behind one URL is a new request); never include
-    credentials or headers in ``body``."""
-    request = {"endpoint": endpoint, "model": model, "body": body, "replicate": replicate}
+    """sha256 hex of the exact request (its body carries the sample's seed), its sample
+    index and, when the server named it, the identity of the model it serves (so a model
+    swapped behind one URL is a new request); never include credentials or headers in
+    ``body``. The sample is keyed under its former name, ``replicate``: a cache filled
+    before samples existed still answers sample 0."""
+    request = {"endpoint": endpoint, "model": model, "body": body, "replicate": sample}
     return digest(request if identity is None else {**request, "identity": identity})
 
 
@@ -88,6 +95,16 @@ class CachedAnswer:
     attempts: int
     tokens: dict[str, int]
     served_model: str | None = None
+    fingerprint: str | None = None  # the reply's system_fingerprint
+
+
+@dataclass(frozen=True)
+class Identity:
+    """``key``: the served model's fingerprint, in every cache key; ``details``: what the
+    server said of the model (keys of :data:`popnavshift.tables.IDENTITY_COLUMNS`)."""
+
+    key: str
+    details: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass
@@ -115,8 +132,8 @@ class ResponseCache:
             self._db = sqlite3.connect(self.path, timeout=30.0, check_same_thread=False)
             self._db.execute("PRAGMA journal_mode=WAL")
             version = self._db.execute("PRAGMA user_version").fetchone()[0]
-            if version == 1:  # same tables, without the served model
-                self._db.execute("ALTER TABLE responses ADD COLUMN served_model TEXT")
+            if version in (1, 2):
+                self._migrate(version)
             elif version not in (0, SCHEMA_VERSION):
                 raise ConfigError(
                     f"response cache {self.path} has schema version {version}, "
@@ -129,18 +146,28 @@ class ResponseCache:
         except sqlite3.DatabaseError as exc:
             raise ConfigError(f"cannot open response cache {self.path}: {exc}") from None
 
+    def _migrate(self, version: int) -> None:
+        """Add the columns a version-1 or -2 file lacks (same tables otherwise)."""
+        added = [("responses", "served_model")] if version == 1 else []
+        added += [("responses", "system_fingerprint"), ("identities", "details")]
+        for table, column in added:
+            exists = self._db.execute("SELECT name FROM sqlite_master WHERE name = ?",
+                                      (table,)).fetchone()
+            if exists:
+                self._db.execute(f"ALTER TABLE {table} ADD COLUMN {column} TEXT")
+
     def get(self, request_hash: str) -> CachedAnswer | None:
         """The valid answer stored for ``request_hash``, or None (a miss)."""
         with self._lock:
             row = self._db.execute(
                 "SELECT raw, attempts, prompt_tokens, completion_tokens, total_tokens, "
-                "served_model FROM responses WHERE request_hash = ?",
+                "served_model, system_fingerprint FROM responses WHERE request_hash = ?",
                 (request_hash,),
             ).fetchone()
             if row is None:
                 self.stats.misses += 1
                 return None
-            raw, attempts, prompt, completion, total, served_model = row
+            raw, attempts, prompt, completion, total, served_model, fingerprint = row
             try:
                 answer = parse_answer(raw)
             except RespondentError as exc:
@@ -151,7 +178,7 @@ class ResponseCache:
                 return None
             self.stats.hits += 1
         tokens = {"prompt": prompt, "completion": completion, "total": total}
-        return CachedAnswer(answer, raw, attempts, tokens, served_model)
+        return CachedAnswer(answer, raw, attempts, tokens, served_model, fingerprint)
 
     def put(
         self,
@@ -164,6 +191,7 @@ class ResponseCache:
         attempts: int,
         tokens: dict[str, int],
         served_model: str | None = None,
+        fingerprint: str | None = None,
     ) -> None:
         """Store a valid answer (raises RespondentError if ``raw`` does not validate)."""
         parse_answer(raw)  # only valid answers may ever be served from this table
@@ -171,10 +199,10 @@ class ResponseCache:
             self._db.execute(
                 "INSERT OR REPLACE INTO responses (request_hash, persona_id, variant, model, "
                 "raw, attempts, prompt_tokens, completion_tokens, total_tokens, created, "
-                "served_model) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                "served_model, system_fingerprint) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 (request_hash, persona_id, variant, model, raw, attempts,
                  tokens.get("prompt", 0), tokens.get("completion", 0), tokens.get("total", 0),
-                 time.time(), served_model),
+                 time.time(), served_model, fingerprint),
             )
             self._db.commit()
             self.stats.stored += 1
@@ -199,18 +227,21 @@ class ResponseCache:
             self._db.commit()
             self.stats.failures += 1
 
-    def identity(self, endpoint: str, model: str) -> str | None:
+    def identity(self, endpoint: str, model: str) -> Identity | None:
         """The identity the server at ``endpoint`` last gave for ``model`` (None: never)."""
         with self._lock:
-            row = self._db.execute("SELECT identity FROM identities WHERE endpoint = ? AND "
-                                   "model = ?", (endpoint, model)).fetchone()
-        return None if row is None else str(row[0])
+            row = self._db.execute("SELECT identity, details FROM identities WHERE endpoint = "
+                                   "? AND model = ?", (endpoint, model)).fetchone()
+        return None if row is None else Identity(str(row[0]), json.loads(row[1] or "{}"))
 
-    def remember_identity(self, endpoint: str, model: str, identity: str) -> None:
+    def remember_identity(self, endpoint: str, model: str, identity: str,
+                          details: dict[str, Any] | None = None) -> None:
         """Keep the identity the server gave, for a run that cannot ask it (offline replay)."""
         with self._lock:
             self._db.execute("INSERT OR REPLACE INTO identities (endpoint, model, identity, "
-                             "seen) VALUES (?, ?, ?, ?)", (endpoint, model, identity, time.time()))
+                             "seen, details) VALUES (?, ?, ?, ?, ?)",
+                             (endpoint, model, identity, time.time(),
+                              json.dumps(details or {}, sort_keys=True)))
             self._db.commit()
 
     def failures(self, persona_id: str | None = None) -> list[dict[str, Any]]:

@@ -31,7 +31,8 @@ from ...redact import redact
 from ..prompt import SYSTEM_PROMPT, build_prompt
 from ..schema import response_json_schema
 from .retries import FinalError, Reply, RetryableError, check_status
-from .transport import REASK, LLMRespondent, check_setting, env_key, is_http_url
+from .settings import check_setting, env_key, is_http_url
+from .transport import REASK, LLMRespondent
 
 DEFAULT_BASE_URL = "https://generativelanguage.googleapis.com"
 API_VERSION = "v1beta"
@@ -42,7 +43,8 @@ class GeminiRespondent(LLMRespondent):
 
     The key comes from ``api_key_env`` (default ``GEMINI_API_KEY``, falling back
     to ``GOOGLE_API_KEY``). ``base_url`` overrides the API root (a proxy, a test
-    server). ``replicate`` only separates cache entries of identical requests.
+    server). Sample ``s`` of a record sends its own ``generationConfig.seed``
+    (:meth:`request_seed`).
     """
 
     name = "gemini"
@@ -55,7 +57,6 @@ class GeminiRespondent(LLMRespondent):
         base_url: str | None = None,
         temperature: float | None = 0.0,
         seed: int | None = 0,
-        replicate: int = 0,
         cache_path: str | Path | None = None,
         max_concurrency: int = 4,
         rate_limit: float | None = None,
@@ -69,7 +70,7 @@ class GeminiRespondent(LLMRespondent):
         max_consecutive_failures: int = 5,
     ) -> None:
         super().__init__(
-            model=model, temperature=temperature, seed=seed, replicate=replicate,
+            model=model, temperature=temperature, seed=seed,
             cache_path=cache_path, max_concurrency=max_concurrency, rate_limit=rate_limit,
             timeout=timeout, max_retries=max_retries, max_reasks=max_reasks,
             backoff_base=backoff_base, backoff_cap=backoff_cap, max_tokens=max_tokens,
@@ -96,7 +97,7 @@ class GeminiRespondent(LLMRespondent):
         return env_key(self.api_key_env)
 
     def _body(self, persona: Mapping[str, Any], reasks: Sequence[tuple[str, str]],
-              max_tokens: int | None = None) -> dict:
+              max_tokens: int | None = None, sample: int = 0) -> dict:
         contents = [{"parts": [{"text": build_prompt(persona)}], "role": "user"}]
         for raw, error in reasks:
             contents.append({"parts": [{"text": raw}], "role": "model"})
@@ -104,8 +105,9 @@ class GeminiRespondent(LLMRespondent):
         config: dict[str, Any] = {}
         if self.temperature is not None:
             config["temperature"] = self.temperature
-        if self.seed is not None:
-            config["seed"] = self.seed
+        seed = self.request_seed(sample)
+        if seed is not None:
+            config["seed"] = seed
         limit = max_tokens or self.max_tokens
         if limit is not None:
             config["maxOutputTokens"] = limit

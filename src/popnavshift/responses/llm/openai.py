@@ -10,6 +10,7 @@ environment variable ``api_key_env`` and only ever placed in the
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -19,18 +20,22 @@ import httpx
 from ...redact import redact
 from ..prompt import SYSTEM_PROMPT, build_prompt
 from ..schema import response_json_schema
-from .identity import listing_identity
+from .cache import Identity
+from .identity import entry_identity, listing_details, listing_entry, props_details
 from .readiness import NotReady
 from .retries import Reply, RetryableError, check_status
-from .transport import REASK, LLMRespondent, check_setting, env_key, is_http_url
+from .settings import check_setting, env_key, is_http_url
+from .transport import REASK, LLMRespondent
 
 
 class OpenAIRespondent(LLMRespondent):
     """Chat-completions respondent. Times in s, ``rate_limit`` in calls/s.
 
     ``temperature``/``seed`` = None leave the field out of the request (for
-    servers or models that reject it). ``replicate`` only separates cache
-    entries of otherwise identical requests.
+    servers or models that reject it). Sample ``s`` of a record sends its own ``seed``
+    (:meth:`request_seed`). ``extra_body`` adds server-specific fields to every request
+    (e.g. ``{"cache_prompt": False}`` for llama.cpp, whose prompt cache otherwise makes
+    answers depend on the request before); being in the body, they are in the cache key.
     """
 
     name = "openai"
@@ -43,7 +48,7 @@ class OpenAIRespondent(LLMRespondent):
         api_key_env: str | None = "OPENAI_API_KEY",
         temperature: float | None = 0.0,
         seed: int | None = 0,
-        replicate: int = 0,
+        extra_body: Mapping[str, Any] | None = None,
         cache_path: str | Path | None = None,
         max_concurrency: int = 4,
         rate_limit: float | None = None,
@@ -57,7 +62,7 @@ class OpenAIRespondent(LLMRespondent):
         max_consecutive_failures: int = 5,
     ) -> None:
         super().__init__(
-            model=model, temperature=temperature, seed=seed, replicate=replicate,
+            model=model, temperature=temperature, seed=seed,
             cache_path=cache_path, max_concurrency=max_concurrency, rate_limit=rate_limit,
             timeout=timeout, max_retries=max_retries, max_reasks=max_reasks,
             backoff_base=backoff_base, backoff_cap=backoff_cap, max_tokens=max_tokens,
@@ -65,6 +70,7 @@ class OpenAIRespondent(LLMRespondent):
         )
         self.base_url = base_url
         self.api_key_env = api_key_env
+        self.extra_body = dict(extra_body or {})
 
     @property
     def endpoint(self) -> str:
@@ -74,12 +80,20 @@ class OpenAIRespondent(LLMRespondent):
         super().validate()
         check_setting(is_http_url(self.base_url), "base_url",
                       "an http(s) URL such as 'http://localhost:11434/v1'", self.base_url)
+        taken = sorted(set(self.extra_body) & OWN_FIELDS)
+        check_setting(not taken and all(isinstance(k, str) for k in self.extra_body),
+                      "extra_body", "a mapping of server-specific fields; "
+                      f"{', '.join(sorted(OWN_FIELDS))} are set by their own options",
+                      self.extra_body)
+
+    def describe(self) -> dict[str, Any]:
+        return {**super().describe(), "extra_body": self.extra_body}
 
     def _api_key(self) -> str | None:
         return env_key(self.api_key_env) if self.api_key_env else None
 
     def _body(self, persona: Mapping[str, Any], reasks: Sequence[tuple[str, str]],
-              max_tokens: int | None = None) -> dict:
+              max_tokens: int | None = None, sample: int = 0) -> dict:
         messages = [
             {"role": "system", "content": SYSTEM_PROMPT},
             {"role": "user", "content": build_prompt(persona)},
@@ -98,23 +112,29 @@ class OpenAIRespondent(LLMRespondent):
         }
         if self.temperature is not None:
             body["temperature"] = self.temperature
-        if self.seed is not None:
-            body["seed"] = self.seed
+        seed = self.request_seed(sample)
+        if seed is not None:
+            body["seed"] = seed
         limit = max_tokens or self.max_tokens
         if limit is not None:
             body["max_tokens"] = limit
-        return body
+        return {**body, **self.extra_body}
 
     def _connect(self, key: str | None) -> _ChatSession:
         return _ChatSession(self.endpoint, key, self.timeout, self.max_concurrency,
                             self.base_url.rstrip("/") + "/models")
 
-    def _ask_identity(self) -> str | None:
+    def _ask_identity(self) -> Identity | None:
         session = self._connect(self._api_key())
         try:
             return session.identity(self.model)
         finally:
             session.close()
+
+
+#: request fields the respondent sets from its own options (not through ``extra_body``)
+OWN_FIELDS = frozenset({"model", "messages", "response_format", "temperature", "seed",
+                        "max_tokens"})
 
 
 class _ChatSession:
@@ -149,6 +169,7 @@ class _ChatSession:
         finish = choice.get("finish_reason")
         note = None if finish in (None, "stop") else f"finish_reason={finish}"
         served = data.get("model") if isinstance(data.get("model"), str) else None
+        fingerprint = data.get("system_fingerprint")
         if message.get("refusal"):
             note = f"refusal: {message['refusal']}"
         tokens = {
@@ -157,40 +178,57 @@ class _ChatSession:
             "total": usage.get("total_tokens") or 0,
         }
         return Reply(message.get("content"), tokens, note, truncated=finish == "length",
-                     model=served)
+                     model=served,
+                     fingerprint=fingerprint if isinstance(fingerprint, str) else None)
 
-    def _models(self) -> httpx.Response | None:
-        """``GET {base_url}/models``: the reply, or None from a server without that route
-        (404, 405, 501); raises NotReady when the server does not answer or refuses
-        (fatal: 401/403)."""
+    def _get(self, url: str) -> httpx.Response | None:
+        """``GET url``: the reply, or None from a server without that route (404, 405,
+        501); raises NotReady when the server does not answer or refuses (fatal: 401/403,
+        worded as the authentication problem it is)."""
         try:
-            resp = self._client.get(self.models_url)
+            resp = self._client.get(url)
         except httpx.TimeoutException:
             raise NotReady(f"no reply within {self.timeout:g} s") from None
         except httpx.TransportError as exc:
             raise NotReady(f"connection error ({type(exc).__name__})") from None
         if resp.status_code in (404, 405, 501):
             return None
+        if resp.status_code in (401, 403):
+            raise NotReady(f"GET {url} was refused (HTTP {resp.status_code}: "
+                           f"{_error_message(resp)}): the server rejected the API key, or "
+                           "needs one", fatal=True)
         if resp.status_code >= 400:
-            raise NotReady(f"GET /models: HTTP {resp.status_code}: {_error_message(resp)}",
-                           fatal=resp.status_code in (401, 403))
+            raise NotReady(f"GET {url}: HTTP {resp.status_code}: {_error_message(resp)}")
         return resp
+
+    def _models(self) -> httpx.Response | None:
+        return self._get(self.models_url)
 
     def check_ready(self) -> None:
         """``GET {base_url}/models``: 2xx is ready; a server without that route is taken
         as ready and the first request tells; 401/403 is final."""
         self._models()
 
-    def identity(self, model: str) -> str | None:
+    def identity(self, model: str) -> Identity | None:
         """:func:`listing_identity` of ``GET {base_url}/models`` (None without that route
-        or a listing); raises NotReady when the server does not answer (fatal: 401/403)."""
+        or a listing) with what the server says of the model: a llama.cpp entry's size
+        and parameters, and its ``GET /props`` (asked of llama.cpp only: an entry with
+        ``meta``); raises NotReady when the server does not answer (fatal: 401/403)."""
         resp = self._models()
-        if resp is None:
-            return None
         try:
-            return listing_identity(resp.json(), model)
+            listing = resp.json() if resp is not None else None
         except ValueError:
             return None
+        entry = listing_entry(listing, model)
+        if entry is None:
+            return None
+        details = listing_details(entry)
+        if isinstance(entry.get("meta"), dict):  # llama.cpp: its /props at the server root
+            props = self._get(self.models_url.removesuffix("/models").removesuffix("/v1")
+                              + "/props")
+            with contextlib.suppress(ValueError):  # an unreadable /props tells nothing
+                details.update(props_details(props.json() if props is not None else None))
+        return Identity(entry_identity(entry), details)
 
     def close(self) -> None:
         self._client.close()

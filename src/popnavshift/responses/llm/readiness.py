@@ -9,7 +9,7 @@ after many minutes. Instead:
   OpenAI-compatible server, ``GET {base_url}/models``) before the first record is
   sent. A local server that is starting or loading its model refuses connections
   or replies 503 for a while, so "not yet" is retried until ``ready_timeout`` s;
-  a rejected key (401/403) stops at once.
+  a rejected key (401/403) stops at once, as an authentication error naming the URL.
 * :class:`Breaker` counts records that failed at the transport level (every retry
   spent) in a row; at ``threshold`` it trips, and the run stops with one error
   instead of trying the remaining records.
@@ -54,12 +54,14 @@ def wait_until_ready(check: Callable[[], None], where: str, ready_timeout: float
             return
         except NotReady as exc:
             left = deadline - time.monotonic()
-            if exc.fatal or left <= 0:
-                waited = "" if exc.fatal else f" after waiting {ready_timeout:g} s"
+            if exc.fatal:  # 401/403: the key, not the server, is the problem
+                raise TransportError(f"{where}: authentication failed: {exc.reason}",
+                                     hint="check the API key in the environment variable "
+                                     "api_key_env names (--api-key-env)") from None
+            if left <= 0:
                 raise TransportError(
-                    f"{where} is not ready{waited}: {exc.reason}",
-                    hint="check the server and base_url"
-                    + ("" if exc.fatal else "; --ready-timeout sets the wait"),
+                    f"{where} is not ready after waiting {ready_timeout:g} s: {exc.reason}",
+                    hint="check the server and base_url; --ready-timeout sets the wait",
                 ) from None
             log.info("%s not ready (%s); checking again in %.2f s", where, exc.reason,
                      min(pause, left))

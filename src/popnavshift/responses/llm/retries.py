@@ -65,6 +65,7 @@ class Reply:
     note: str | None = None  # why the text may be incomplete (finish reason, refusal)
     truncated: bool = False  # cut at the token limit (finish_reason length / MAX_TOKENS)
     model: str | None = None  # the model that served the request, as the server names it
+    fingerprint: str | None = None  # the server's build fingerprint (system_fingerprint)
 
 
 class Session(Protocol):
@@ -137,9 +138,11 @@ class RateLimiter:
 def send_with_retries(
     send: Callable[[], Reply], policy: RetryPolicy, limiter: RateLimiter,
     stopped: Callable[[], bool] = lambda: False,
+    on_retry: Callable[[], None] = lambda: None,
 ) -> tuple[Reply, int]:
     """``(reply, calls)``; raises :class:`TransportFailure` once retries are spent, or
-    before a retry once ``stopped()`` (the run is being stopped)."""
+    before a retry once ``stopped()`` (the run is being stopped). ``on_retry()`` is
+    called before each retry (the progress lines count them as they happen)."""
     calls = 0
     while True:
         limiter.wait()
@@ -153,6 +156,7 @@ def send_with_retries(
                 raise TransportFailure(f"{exc.reason} {spent}", calls=calls) from None
             wait = policy.delay(calls, exc.retry_after)
             log.info("%s; retry %d/%d in %.2f s", exc.reason, calls, policy.max_retries, wait)
+            on_retry()
             time.sleep(wait)
         except FinalError as exc:
             raise TransportFailure(exc.reason, calls=calls, fatal=exc.fatal) from None

@@ -27,8 +27,6 @@ request.
 from __future__ import annotations
 
 import logging
-import math
-import os
 import threading
 from abc import abstractmethod
 from collections.abc import Mapping, Sequence
@@ -38,13 +36,13 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from ...errors import ConfigError, MissingKeyError, RespondentError, TransportError
-from ...redact import redact, register_secret
+from ...errors import ConfigError, RespondentError, TransportError
+from ...redact import redact
 from ..probes import PROBE_SET_HASH
-from ..respondent import Answer, ProbeRequest, Progress, Respondent
+from ..respondent import Answer, ProbeRequest, Progress, Respondent, sample_seed
 from ..schema import parse_answer
 from .cache import CacheStats, ResponseCache, request_key
-from .identity import served_identity
+from .identity import Identity, served_identity
 from .readiness import Breaker, wait_until_ready
 from .retries import (
     RateLimiter,
@@ -54,6 +52,7 @@ from .retries import (
     add_tokens,
     send_with_retries,
 )
+from .settings import check_setting, is_int, is_pos
 
 log = logging.getLogger("popnavshift.responses.llm")
 
@@ -73,6 +72,12 @@ class _Run:
     breaker: Breaker
     fatal: TransportFailure | None = None
     lock: threading.Lock = field(default_factory=threading.Lock)
+    counts: dict[str, int] = field(
+        default_factory=lambda: {"calls": 0, "retries": 0, "failed": 0})
+
+    def count(self, what: str, n: int = 1) -> None:
+        with self.lock:
+            self.counts[what] += n
 
     def stopped(self) -> bool:
         return self.fatal is not None or self.breaker.tripped is not None
@@ -98,7 +103,6 @@ class LLMRespondent(Respondent):
         model: str,
         temperature: float | None = 0.0,
         seed: int | None = 0,
-        replicate: int = 0,
         cache_path: str | Path | None = None,
         max_concurrency: int = 4,
         rate_limit: float | None = None,
@@ -114,7 +118,6 @@ class LLMRespondent(Respondent):
         self._model = model
         self.temperature = temperature
         self.seed = seed
-        self.replicate = replicate
         self.cache_path = cache_path
         self.max_concurrency = max_concurrency
         self.rate_limit = rate_limit
@@ -128,6 +131,10 @@ class LLMRespondent(Respondent):
         self.max_consecutive_failures = max_consecutive_failures
         self.cache_stats: CacheStats | None = None  # counts of the last answer_all
         self._served_identity: str | None = None  # of the last answer_all's server
+        #: what the server said of its model (file name, size, parameters, build) in the
+        #: last answer_all, or last told (offline replay): the responses' identity columns
+        self.served_details: dict[str, Any] = {}
+        self._counts: dict[str, int] = {}  # the current run's calls, retries, failures
 
     @property
     def model(self) -> str:
@@ -144,9 +151,14 @@ class LLMRespondent(Respondent):
 
     @abstractmethod
     def _body(self, persona: Mapping[str, Any], reasks: Sequence[tuple[str, str]],
-              max_tokens: int | None = None) -> dict:
+              max_tokens: int | None = None, sample: int = 0) -> dict:
         """The exact request body; ``reasks`` holds (invalid raw reply, error) turns;
-        ``max_tokens`` overrides :attr:`max_tokens` (a retry after a truncated reply)."""
+        ``max_tokens`` overrides :attr:`max_tokens` (a retry after a truncated reply);
+        ``sample`` selects the seed sent (:meth:`request_seed`)."""
+
+    def request_seed(self, sample: int) -> int | None:
+        """The seed sent with independent sample ``sample`` (None: no seed is sent)."""
+        return None if self.seed is None else sample_seed(self.seed, sample)
 
     @abstractmethod
     def _connect(self, key: str | None) -> Session:
@@ -155,30 +167,36 @@ class LLMRespondent(Respondent):
     def describe(self) -> dict[str, Any]:
         return {
             "respondent": self.name, "model": self.model, "endpoint": self.endpoint,
-            "temperature": self.temperature, "seed": self.seed, "replicate": self.replicate,
+            "temperature": self.temperature, "seed": self.seed,
             "max_reasks": self.max_reasks, "max_tokens": self.max_tokens,
             "probe_set": PROBE_SET_HASH,
         }
+
+    def progress_note(self) -> str:
+        """The current run's network calls, transport retries and failed records so far,
+        for the progress lines."""
+        c = self._counts
+        return (f"{c.get('calls', 0)} calls, {c.get('retries', 0)} retries, "
+                f"{c.get('failed', 0)} failed")
 
     def validate(self) -> None:
         """Raise ConfigError for a bad setting (``answer_all`` calls this first)."""
         checks = [
             ("model", isinstance(self.model, str) and self.model.strip() != "",
              "a non-empty model name"),
-            ("max_concurrency", _is_int(self.max_concurrency, 1), "an int ≥ 1"),
-            ("rate_limit", self.rate_limit is None or _is_pos(self.rate_limit),
+            ("max_concurrency", is_int(self.max_concurrency, 1), "an int ≥ 1"),
+            ("rate_limit", self.rate_limit is None or is_pos(self.rate_limit),
              "None or calls/s > 0"),
-            ("timeout", _is_pos(self.timeout), "seconds > 0"),
-            ("max_retries", _is_int(self.max_retries, 0), "an int ≥ 0"),
-            ("max_reasks", _is_int(self.max_reasks, 0), "an int ≥ 0"),
-            ("replicate", _is_int(self.replicate, 0), "an int ≥ 0"),
-            ("backoff_base", _is_pos(self.backoff_base) or self.backoff_base == 0, "seconds ≥ 0"),
-            ("backoff_cap", _is_pos(self.backoff_cap) or self.backoff_cap == 0, "seconds ≥ 0"),
-            ("max_tokens", self.max_tokens is None or _is_int(self.max_tokens, 1),
+            ("timeout", is_pos(self.timeout), "seconds > 0"),
+            ("max_retries", is_int(self.max_retries, 0), "an int ≥ 0"),
+            ("max_reasks", is_int(self.max_reasks, 0), "an int ≥ 0"),
+            ("backoff_base", is_pos(self.backoff_base) or self.backoff_base == 0, "seconds ≥ 0"),
+            ("backoff_cap", is_pos(self.backoff_cap) or self.backoff_cap == 0, "seconds ≥ 0"),
+            ("max_tokens", self.max_tokens is None or is_int(self.max_tokens, 1),
              "None or an int ≥ 1"),
-            ("ready_timeout", _is_pos(self.ready_timeout) or self.ready_timeout == 0,
+            ("ready_timeout", is_pos(self.ready_timeout) or self.ready_timeout == 0,
              "seconds ≥ 0"),
-            ("max_consecutive_failures", _is_int(self.max_consecutive_failures, 1),
+            ("max_consecutive_failures", is_int(self.max_consecutive_failures, 1),
              "an int ≥ 1"),
         ]
         for name, ok, expected in checks:
@@ -196,15 +214,20 @@ class LLMRespondent(Respondent):
         identical (same persona fields) are asked once; the copies count as cached.
         """
         self.validate()
+        if self.seed is None and any(r.sample for r in requests):
+            raise ConfigError("several samples need a seed: seed=None sends none, so the "
+                              "samples would be one request asked again",
+                              hint="set seed (--respondent-seed) or ask one sample")
         tick = progress or (lambda n: None)
         answers: dict[int, Answer] = {}
         todo: dict[str, int] = {}  # request hash → the record that asks it
         cache = ResponseCache(self.cache_path) if self.cache_path is not None else None
         self.cache_stats = None
         try:
-            self._served_identity = served_identity(self._ask_identity, cache, self.endpoint,
-                                                    self.model, self.name)
-            keys = [self._key(self._body(r.persona, ())) for r in requests]
+            self._served_identity, self.served_details = served_identity(
+                self._ask_identity, cache, self.endpoint, self.model, self.name)
+            keys = [self._key(self._body(r.persona, (), sample=r.sample), r.sample)
+                    for r in requests]
             for i, (req, key) in enumerate(zip(requests, keys, strict=True)):
                 if key in todo:
                     continue
@@ -242,6 +265,7 @@ class LLMRespondent(Respondent):
         secret = self._api_key()  # MissingKeyError before any network call
         run = _Run(self._connect(secret), cache, RateLimiter(self.rate_limit),
                    Breaker(self.max_consecutive_failures))
+        self._counts = run.counts
         pool = ThreadPoolExecutor(self.max_concurrency, "popnavshift-llm")
         try:
             wait_until_ready(run.session.check_ready, f"{self.name} server {self.endpoint}",
@@ -266,11 +290,10 @@ class LLMRespondent(Respondent):
                 "threshold",
             )
 
-    def _key(self, body: dict) -> str:
-        return request_key(self.endpoint, self.model, body, self.replicate,
-                           self._served_identity)
+    def _key(self, body: dict, sample: int) -> str:
+        return request_key(self.endpoint, self.model, body, sample, self._served_identity)
 
-    def _ask_identity(self) -> str | None:
+    def _ask_identity(self) -> Identity | None:
         """The identity of the model the server serves, asked before the cache is read;
         None when the server does not say; raises NotReady (or MissingKeyError) when it
         cannot be asked. This base names none."""
@@ -286,7 +309,7 @@ class LLMRespondent(Respondent):
         # responses table does not depend on cache state; calls=0 says nothing was sent.
         return Answer(req.persona_id, req.variant, answer=hit.answer, raw=hit.raw, calls=0,
                       attempts=hit.attempts, cached=True, tokens=dict(hit.tokens),
-                      served_model=hit.served_model)
+                      served_model=hit.served_model, fingerprint=hit.fingerprint)
 
     def _ask(self, req: ProbeRequest, key: str, run: _Run) -> Answer:
         """One record: up to 1 + max_reasks content attempts, each with transport retries.
@@ -302,12 +325,15 @@ class LLMRespondent(Respondent):
             if run.stopped():
                 ans.error = f"skipped: {run.fatal or run.breaker.tripped}"
                 return ans
-            body = self._body(req.persona, reasks, limit)
+            body = self._body(req.persona, reasks, limit, req.sample)
             ans.attempts = attempt + 1
             try:
                 reply, calls = send_with_retries(partial(run.session.send, body), policy,
-                                                 run.limiter, run.stopped)
+                                                 run.limiter, run.stopped,
+                                                 partial(run.count, "retries"))
             except TransportFailure as exc:
+                run.count("calls", exc.calls)
+                run.count("failed")
                 ans.calls += exc.calls
                 ans.error = run.redact(f"transport: {exc}")
                 if exc.fatal:
@@ -317,8 +343,10 @@ class LLMRespondent(Respondent):
                 self._log_failure(run, req, body, ans.error, None)
                 return ans
             run.breaker.record(None)
+            run.count("calls", calls)
             ans.calls += calls
             ans.served_model = reply.model or ans.served_model
+            ans.fingerprint = reply.fingerprint or ans.fingerprint
             add_tokens(ans.tokens, reply.tokens)
             raw = run.redact(reply.text or "")
             try:
@@ -343,7 +371,7 @@ class LLMRespondent(Respondent):
             if run.cache is not None:
                 run.cache.put(key, persona_id=req.persona_id, variant=req.variant,
                               model=self.model, raw=raw, attempts=ans.attempts, tokens=ans.tokens,
-                              served_model=ans.served_model)
+                              served_model=ans.served_model, fingerprint=ans.fingerprint)
             return ans
         last = reasks[-1][1] if reasks else "reply cut at the token limit"
         ans.error = f"invalid after {ans.attempts} attempts: {last}"
@@ -352,7 +380,7 @@ class LLMRespondent(Respondent):
     def _log_failure(self, run: _Run, req: ProbeRequest, body: dict, error: str,
                      raw: str | None) -> None:
         if run.cache is not None:
-            run.cache.put_failure(self._key(body), persona_id=req.persona_id,
+            run.cache.put_failure(self._key(body, req.sample), persona_id=req.persona_id,
                                   variant=req.variant, model=self.model, error=error, raw=raw)
 
 
@@ -360,35 +388,3 @@ def _copy(asked: Answer, req: ProbeRequest) -> Answer:
     """The answer to an identical request, for another record of the same batch."""
     return replace(asked, persona_id=req.persona_id, variant=req.variant, calls=0,
                    cached=asked.answer is not None, tokens=dict(asked.tokens))
-
-
-def env_key(*names: str) -> str:
-    """The first non-empty environment variable of ``names``; MissingKeyError otherwise."""
-    for name in names:
-        value = os.environ.get(name, "").strip()
-        if value:
-            register_secret(value)  # masked in every message and log from now on
-            return value
-    listed = " or ".join(names)
-    raise MissingKeyError(
-        f"API key environment variable {listed} is not set",
-        hint=f"export {names[0]}=... (keys are read from the environment only)",
-    )
-
-
-def check_setting(ok: bool, name: str, expected: str, got: object) -> None:
-    if not ok:
-        raise ConfigError(f"{name} must be {expected}; got {got!r}")
-
-
-def is_http_url(value: object) -> bool:
-    return isinstance(value, str) and value.startswith(("http://", "https://"))
-
-
-def _is_int(value: object, low: int) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool) and value >= low
-
-
-def _is_pos(value: object) -> bool:
-    return (isinstance(value, int | float) and not isinstance(value, bool)
-            and math.isfinite(value) and value > 0)
