@@ -56,7 +56,14 @@ def baseline(responses: pd.DataFrame) -> pd.DataFrame:
 
 def _entropy(counts: np.ndarray) -> float:
     p = counts[counts > 0] / counts.sum()
-    return float(-(p * np.log2(p)).sum()) if len(p) else np.nan
+    return float(-(p * np.log2(p)).sum()) + 0.0 if len(p) else np.nan  # + 0.0: never -0.0
+
+
+def rho_text(rho: float, low: float, high: float) -> str:
+    """A Spearman ρ with its interval, or a dash when it is undefined (a constant column)."""
+    if np.isnan(rho):
+        return "– (constant)"
+    return f"{rho:+.2f} [{low:+.2f}, {high:+.2f}]"
 
 
 def spread(responses: pd.DataFrame) -> pd.DataFrame:

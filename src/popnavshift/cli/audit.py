@@ -9,6 +9,7 @@ import pandas as pd
 import typer
 from rich.table import Table
 
+from ..analysis.audit import rho_text
 from ..errors import ConfigError
 from ..progress import console
 from .app import app, say
@@ -124,7 +125,7 @@ def _print_respondent(t: dict[str, pd.DataFrame], r) -> None:
               title="expected directions")
     for x in _rows(t, "directions", r.respondent).itertuples(index=False):
         d.add_row(f"{x.field} → {x.target}", x.expected,
-                  f"{x.rho:+.2f} [{x.ci_low:+.2f}, {x.ci_high:+.2f}]", _outcome(x.outcome))
+                  rho_text(x.rho, x.ci_low, x.ci_high), _outcome(x.outcome))
     console.print(d)
     _print_retest(_rows(t, "retest", r.respondent), r.retest)
     m = _rows(t, "manipulation", r.respondent)

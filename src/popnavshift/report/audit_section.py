@@ -8,6 +8,7 @@ from typing import Any
 
 import pandas as pd
 
+from ..analysis.audit import rho_text
 from ..analysis.audit_verdict import (
     ALPHA,
     MIN_DISTINCT_SHARE,
@@ -142,7 +143,7 @@ def _directions(s: Section, d: pd.DataFrame | None) -> None:
     if d is None or d.empty:
         return
     rows = [[r.respondent, f"{r.field} → {r.target}", r.expected, r.why,
-             f"{r.rho:+.2f} [{r.ci_low:+.2f}, {r.ci_high:+.2f}]",
+             rho_text(r.rho, r.ci_low, r.ci_high),
              Cell(r.outcome, "ok" if r.outcome == "as expected" else "bad")]
             for r in d.itertuples()]
     s.blocks.append(table(["Respondent", "Persona field → answer", "Expected", "Why",
