@@ -14,7 +14,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from ..tables import BUILTIN_CONTROLLERS
+from ..paper import PAPER_CONTROLLERS
 from .paper_reference import MATCHED_CHANGE_SIGN, TAIL_TO_MEAN_RATIO
 from .reversals import MATCHED, METRICS
 
@@ -123,9 +123,9 @@ def available_findings(table1: pd.DataFrame, outcomes: pd.DataFrame,
     """:func:`paper_findings` on a study that may lack some inputs: the findings whose
     inputs exist, in the paper's order, and what was left out. ``pairs``: Table I has the
     all-pairs rows; ``matched``: its matched rows; ``delays``: every controller has a
-    mean delay; the controller findings need all three built-in controllers, the width
+    mean delay; the controller findings need the paper's three controllers, the width
     findings a width series."""
-    ctrl = set(BUILTIN_CONTROLLERS) <= set(outcomes.index)
+    ctrl = set(PAPER_CONTROLLERS) <= set(outcomes.index)
     controllers = "the controller findings (all three built-in controllers)"
     controller_delays = "the controller delay findings"
 

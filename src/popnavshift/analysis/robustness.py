@@ -16,10 +16,12 @@ import numpy as np
 import pandas as pd
 
 from .bootstrap import rate_intervals
-from .reversals import MATCHED, TOLERANCES, comparisons, population_pairs, tie_sign
+from .ranked import TOLERANCES, names
+from .reversals import MATCHED, comparisons, population_pairs, tie_sign
 
-BURDEN = ("mean_delay", "worst_decile")
-ALL_METRICS = ("robot_time", "mean_delay", "worst_decile")
+#: the paper's ranked metrics, and those of them that are pedestrian burden
+ALL_METRICS = names(paper=True)
+BURDEN = names("burden", paper=True)
 
 
 def rates_by_set(

@@ -36,6 +36,7 @@ from .calibrate import calibration_table
 from .evidence import complete_design, test_comparisons
 from .nulls import burden_beyond_time, design_populations, family_verdicts, headline_designs
 from .power import Costs, design_advice
+from .ranked import names
 from .replicates import replicability, replicate_curve, seed_sets
 from .significance import LEVEL
 from .surviving import surviving_findings
@@ -120,7 +121,7 @@ def _decided(tables: dict[str, pd.DataFrame], boot_excess: dict, costs: dict[str
     nulls = tables[PREFIX + "null_rates"]
     head = family_verdicts(tables[PREFIX + "headline"], nulls)
     comps = list(dict.fromkeys(head["comparison"]))
-    burden_metrics = ("mean_delay", "cvar90")
+    burden_metrics = names("burden", summary=True)
     m = max(sum(c in costs for c in comps) * len(burden_metrics), 1)
     burden = [burden_beyond_time(head[head["comparison"] == c], nulls, boot_excess, burden=b,
                                  alpha=ALPHA / m)

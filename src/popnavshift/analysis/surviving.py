@@ -21,7 +21,8 @@ from functools import partial
 import numpy as np
 import pandas as pd
 
-from ..tables import BUILTIN_CONTROLLERS, NO_ROBOT
+from ..paper import PAPER_CONTROLLERS
+from ..tables import NO_ROBOT
 from .delay import CELL_KEY, cell_metrics, episode_cells, paired_delays
 from .findings import TAIL_BAND, WIDTH_SCENES
 from .nulls import centred_interval
@@ -112,7 +113,7 @@ def surviving_findings(runs: pd.DataFrame, pedestrians: pd.DataFrame, *,
             return means[ctrl] - rest if highest else rest - means[ctrl]
         return f
 
-    if set(BUILTIN_CONTROLLERS) <= ctrls:
+    if set(PAPER_CONTROLLERS) <= ctrls:
         checks += [
             ("Reactive has the highest success rate", "success share gap to the next [pp]",
              lambda v: 100 * extreme("success_share", "reactive", True)(v), (0, np.inf),

@@ -27,9 +27,9 @@ from pydantic import (
 
 from ..errors import ConfigError, UnknownNameError
 from ..hashing import digest
+from ..paper import PAPER_CONTROLLERS, PAPER_POPULATIONS
 from ..populations.build import POPULATIONS, SPLIT_HALVES, is_known
 from ..populations.nulls import null_populations
-from ..sim.controllers.builtin import BUILTIN_CONTROLLERS
 from ..sim.controllers.registry import controller_id
 
 MATCHED_PAIR: tuple[str, str] = ("matched_base", "matched_deadline")
@@ -84,11 +84,11 @@ class NullDesign(Strict):
 
 
 class Part(Strict):
-    populations: tuple[str, ...] = POPULATIONS
+    populations: tuple[str, ...] = PAPER_POPULATIONS
     episodes: EpisodeSelection = EpisodeSelection()
     #: controller ids: a registered name, an entry point or ``package.module:Class``;
     #: in YAML also ``{name: HRVO, params: {...}}``, stored as ``HRVO{"...":...}``
-    controllers: tuple[str, ...] = BUILTIN_CONTROLLERS
+    controllers: tuple[str, ...] = PAPER_CONTROLLERS
     backends: tuple[str, ...] = ("orca",)
     #: profile set(s): a mapping A–D, or a robustness label such as A~shuffle
     mapping: str | tuple[str, ...] = "A"

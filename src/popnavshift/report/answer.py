@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..analysis.ranked import names
 from ..analysis.verdicts import ABOVE, BELOW, CLAIMS, SMALL
 from ..populations.build import population_order
 from .blocks import Cell, Section, figure, fmt, para, pct, table
@@ -25,7 +26,7 @@ from .figures import controller_label, pop_label
 from .plain import LABELS, NULL_WORDS, answer_sentences, pp
 
 #: The headline's metrics, in the order the box lists them: burden first, then robot time.
-HEADLINE_METRICS: tuple[str, ...] = ("mean_delay", "worst_decile", "cvar90", "robot_time")
+HEADLINE_METRICS: tuple[str, ...] = (*names("burden"), *names("robot"))  # burden first
 COMPARISONS = {"matched": "Matched time-pressure shift (same personas)",
                "all_pairs": "All population pairs of the main grid"}
 

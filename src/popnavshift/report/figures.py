@@ -22,7 +22,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
 
-from ..analysis import MATCHED, METRICS  # noqa: E402
+from ..analysis import MATCHED, METRICS, RANKED_METRICS  # noqa: E402
 from ..analysis.paper_reference import WIDTH_SENSITIVITY  # noqa: E402
 from ..analysis.summary import controller_order  # noqa: E402
 from ..populations.build import POPULATION_GROUPS, population_order  # noqa: E402
@@ -34,8 +34,7 @@ if TYPE_CHECKING:
 
 CONTROLLER_LABELS = {"reactive": "Reactive", "early_yield": "Early yielding",
                      "robot_orca": "Robot-ORCA", "pooled": "pooled", "none": "no robot"}
-METRIC_LABELS = {"robot_time": "Robot travel time", "mean_delay": "Mean pedestrian delay",
-                 "worst_decile": "Worst-decile delay"}
+METRIC_LABELS = {m.name: m.title for m in RANKED_METRICS}
 #: Fig. 2 row groups, top to bottom: matched pair, source-field cohorts, mixed, probe cohorts.
 CHANGE_GROUPS: tuple[tuple[str, ...], ...] = (
     (MATCHED[1],), POPULATION_GROUPS["source-field"], ("mixed",),
