@@ -21,10 +21,9 @@ from popnavshift.analysis.significance import (
     orderings,
 )
 from popnavshift.analysis.verdicts import ABOVE, BELOW, clopper_pearson
-from popnavshift.populations.nulls import swap_name
+from popnavshift.populations.identity import MATCHED_PAIR, PopulationSpec
 from synth_study import crossover, no_effect, synthetic_cells, synthetic_study
 
-MATCHED = ("matched_base", "matched_deadline")
 CROSS_CELLS = (0, 1, 2, 3, 4, 5)
 
 
@@ -34,15 +33,15 @@ def swap_study(n_null: int, *, inject: float, seed: int, **kw):
     pops = {"matched_base": crossover(CROSS_CELLS, inject, -1.0),
             "matched_deadline": crossover(CROSS_CELLS, inject, +1.0)}
     for k in range(1, n_null + 1):
-        pops[swap_name(k, "a")] = no_effect
-        pops[swap_name(k, "b")] = no_effect
+        pops[PopulationSpec.swap(k, "a").name] = no_effect
+        pops[PopulationSpec.swap(k, "b").name] = no_effect
     return synthetic_study(pops, seed=seed, **kw)
 
 
 def analyse_matched(runs, peds, *, n_boot=200, seed=0, metrics=("mean_delay", "robot_time")):
     pops = list(runs["population"].unique())
-    designs = headline_designs(pops, list(MATCHED))
-    return run_tests(runs, peds, designs, list(MATCHED), rng=np.random.default_rng(seed),
+    designs = headline_designs(pops, list(MATCHED_PAIR))
+    return run_tests(runs, peds, designs, list(MATCHED_PAIR), rng=np.random.default_rng(seed),
                      n_boot=n_boot, metrics=metrics)
 
 

@@ -20,6 +20,8 @@ from popnavshift.evaluate.card import population_gaps, worst_run
 from popnavshift.tables import check_table
 from test_registries import EXAMPLE, USER_MODULE, install_example
 
+pytestmark = pytest.mark.slow  # the card of the quick study, run and evaluated (minutes)
+
 CLASS_SPEC = "slow_near_peds.controller:SlowNearPeds"
 #: `evaluate` is registered by importing popnavshift.cli.evaluate; importing it here too
 #: keeps this test independent of popnavshift.cli's import line.

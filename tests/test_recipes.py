@@ -105,3 +105,43 @@ def test_the_recipe_for_a_population(tmp_path):
     assert len(low) > 0 and not set(low) & set(high)  # the selector, not a copy
     cells = pd.read_csv(folder / "report" / "tables" / "cell_metrics.csv")
     assert set(cells["population"]) == {"high_caution", "low_caution"}
+
+
+def test_a_part_role_is_declared_named_or_read_from_its_content():
+    from popnavshift.engine.study import study_from_dict
+    from popnavshift.errors import ConfigError
+
+    parts = {"grid": {}, "profile_sets": {"mapping": ["A", "B"]},
+             "robots": {"backends": ["orca", "hl"]}, "blocks": {"mapping": ["A", "A~shuffle"]},
+             "second": {"mapping": "A~rule-2"}, "sized": {"null_design": {"kind": "sized"}},
+             "mine": {"role": "mapping", "mapping": "A"}}
+    study = study_from_dict({"name": "t", "parts": {**parts, "mine": {"mapping": "A"}}})
+    assert {n: study.role(n) for n in study.parts} == {
+        "grid": "main", "profile_sets": "mapping", "robots": "backend", "blocks": "structure",
+        "second": "respondent", "sized": "other", "mine": "other"}
+    named = study_from_dict({"name": "t", "parts": {"main": {}, "backend": {"mapping": "B"}}})
+    assert named.role("backend") == "backend"  # a role's name is its role, as in paper.yaml
+    with pytest.raises(ConfigError, match="more than one part has role mapping"):
+        study_from_dict({"name": "t", "parts": parts})
+    with pytest.raises(ConfigError, match="role"):
+        study_from_dict({"name": "t", "parts": {"main": {"role": "mapings"}}})
+
+
+#: "A study part": any name; its role declared or read from its content.
+@pytest.mark.slow
+def test_a_renamed_part_keeps_its_report_section(tmp_path):
+    from popnavshift.engine.runner import run_study
+    from popnavshift.engine.study import study_from_dict
+    from popnavshift.report import build_report
+
+    parts = {"grid": {"populations": ["mixed", "high_caution"], "episodes": EPISODES},
+             "profile_sets": {"populations": ["mixed", "high_caution"], "mapping": ["A", "B"],
+                              "episodes": EPISODES}}
+    study = study_from_dict({"name": "renamed", "seed": 0, "matched_n": 60, "parts": parts,
+                             "personas": {"source": "synthetic", "n": 300}})
+    run_study(study, tmp_path, workers=1, show_progress=False)
+    build_report(tmp_path, n_boot=20, replays=0)
+    import pandas as pd
+
+    rates = pd.read_csv(tmp_path / "report" / "tables" / "robust_mapping.csv")
+    assert set(rates["mapping"]) == {"A", "B"}

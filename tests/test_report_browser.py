@@ -36,9 +36,9 @@ def chromium() -> str | None:
 
 
 BROWSER = chromium()
-pytestmark = pytest.mark.skipif(
+pytestmark = [pytest.mark.slow, pytest.mark.skipif(
     BROWSER is None, reason="no Chromium found (apt-get install -y chromium); "
-    f"looked for {', '.join(CANDIDATES)} and /usr/bin/chromium")
+    f"looked for {', '.join(CANDIDATES)} and /usr/bin/chromium")]
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,6 @@ from .delay import (
 from .findings import Finding, paper_findings
 from .ranked import RANKED_METRICS, TOLERANCES, RankedMetric, tail_count
 from .reversals import (
-    MATCHED,
     METRICS,
     cluster_counts,
     comparisons,
@@ -41,7 +40,6 @@ from .summary import (
 )
 
 __all__ = [
-    "MATCHED",
     "METRICS",
     "RANKED_METRICS",
     "TOLERANCES",

@@ -15,8 +15,9 @@ import numpy as np
 import pandas as pd
 
 from ..paper import PAPER_CONTROLLERS
+from ..populations.identity import MATCHED_PAIR
 from .paper_reference import MATCHED_CHANGE_SIGN, TAIL_TO_MEAN_RATIO
-from .reversals import MATCHED, METRICS
+from .reversals import METRICS
 
 
 class Finding(NamedTuple):
@@ -95,7 +96,7 @@ def controller_extreme(outcomes: pd.DataFrame, column: str, controller: str, *,
 
 def matched_change_direction(change: pd.DataFrame, expected: dict[str, int]) -> Finding:
     """The matched shift moves each controller's delay in the paper's direction (sign)."""
-    sel = change[change["population"] == MATCHED[1]].set_index("controller")["change"]
+    sel = change[change["population"] == MATCHED_PAIR[1]].set_index("controller")["change"]
     got = {c: float(sel.get(c, np.nan)) for c in expected}
     holds = all(np.sign(got[c]) == s for c, s in expected.items())
     return Finding("Matched deadline shift lowers delay under reactive and robot_orca and "

@@ -27,7 +27,6 @@ from .ranked import TOLERANCES, names
 #: The paper's three ranked metrics (Table I); each one's tie tolerance is declared with it.
 METRICS: tuple[str, ...] = names(paper=True)
 TIE_EPS = 1e-9  # [s] guard against binary rounding at exactly the tolerance
-MATCHED: tuple[str, str] = ("matched_base", "matched_deadline")
 
 
 def population_pairs(populations: Sequence[str]) -> list[tuple[str, str]]:

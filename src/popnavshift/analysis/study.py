@@ -18,12 +18,12 @@ import numpy as np
 import pandas as pd
 
 from ..engine.folder import is_half, split_halves
-from ..populations.build import HALF_SUFFIXES
+from ..populations.identity import ARMS, MATCHED_PAIR, PopulationSpec
 from ..tables import NO_ROBOT
 from .delay import cell_metrics, paired_delays
 from .findings import WIDTH_SCENES, Finding, available_findings
 from .paper_reference import REVERSAL_RATE
-from .reversals import MATCHED, comparisons, population_pairs, ranking_tau
+from .reversals import comparisons, population_pairs, ranking_tau
 from .summary import (
     controller_outcomes,
     delay_change,
@@ -78,8 +78,8 @@ def _rankings(a: Analysis, cells: pd.DataFrame, rng_seed: int, n_boot: int) -> N
     a.tables["reversals"] = t1.assign(paper_rate=[
         REVERSAL_RATE.get(c, {}).get(s, {}).get(m, np.nan)
         for c, s, m in t1[["comparison", "cells", "metric"]].itertuples(index=False)])
-    if not set(MATCHED) <= set(pops):
-        a.missing["matched"] = f"the study lacks the matched pair ({', '.join(MATCHED)})"
+    if not set(MATCHED_PAIR) <= set(pops):
+        a.missing["matched"] = f"the study lacks the matched pair ({', '.join(MATCHED_PAIR)})"
     a.comps = comparisons(cells, population_pairs(pops))
     tau = ranking_tau(a.comps).groupby(["metric", "pop_a", "pop_b"])
     a.tables["kendall_tau"] = tau.agg(tau=("tau", "mean"), n_cells=("tau", "count")).reset_index()
@@ -95,7 +95,8 @@ def _outcomes(a: Analysis, runs: pd.DataFrame, cells: pd.DataFrame) -> None:
 
 def _delay_change(a: Analysis, cells: pd.DataFrame) -> None:
     pops = set(cells["population"])
-    if not (set(MATCHED) <= pops or ("homogeneous" in pops and pops - {"homogeneous", *MATCHED})):
+    if not (set(MATCHED_PAIR) <= pops
+            or ("homogeneous" in pops and pops - {"homogeneous", *MATCHED_PAIR})):
         a.missing["change"] = ("the change in delay needs the matched pair, or the homogeneous "
                                "reference and a population outside the matched pair")
         return
@@ -134,9 +135,9 @@ def _noise_floor(a: Analysis, runs: pd.DataFrame, peds: pd.DataFrame) -> None:
     halves = split_halves(runs["population"].unique())
     robot = runs.loc[is_half(runs["population"]) & (runs["controller"] != NO_ROBOT), "controller"]
     if not halves or robot.nunique() < 2:
-        a_, b_ = HALF_SUFFIXES
+        a_, b_ = (PopulationSpec.half("<population>", arm).name for arm in ARMS)
         a.missing["noise"] = (f"the noise floor was not run: the study has no split-half "
-                              f"populations (named <population>{a_} and <population>{b_}) "
+                              f"populations (named {a_} and {b_}) "
                               "with runs of 2 or more controllers")
         return
     frames = [noise_floor(runs, peds, (ha, hb), completed_only=done)

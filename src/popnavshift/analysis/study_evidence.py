@@ -29,8 +29,7 @@ import numpy as np
 import pandas as pd
 
 from ..engine.folder import StudyFolder, main_part
-from ..populations.build import HALF_SUFFIXES
-from ..populations.nulls import parse_null
+from ..populations.identity import PopulationSpec
 from ..tables import NO_ROBOT
 from .calibrate import calibration_table
 from .evidence import complete_design, test_comparisons
@@ -46,7 +45,7 @@ PREFIX = "evidence_"
 
 
 def _is_observed(name: str) -> bool:
-    return parse_null(name) is None and not name.endswith(HALF_SUFFIXES)
+    return PopulationSpec.parse(name).role == "observed"
 
 
 def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000,
@@ -65,7 +64,7 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
     designs = headline_designs(present, observed)
     if not designs:
         return {}, {"evidence": "the study has neither the matched pair nor two populations"}
-    seed = int(study.manifest.get("seeds", {}).get("study", 0))
+    seed = 0 if study.seed is None else int(study.seed)
     frames: dict[str, list[pd.DataFrame]] = {}
     missing: dict[str, str] = {}
     boot_excess: dict[tuple[str, str, str], np.ndarray] = {}

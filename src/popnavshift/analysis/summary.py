@@ -18,12 +18,12 @@ import numpy as np
 import pandas as pd
 
 from ..paper import PAPER_CONTROLLERS
+from ..populations.identity import MATCHED_PAIR
 from ..tables import NO_ROBOT
 from .bootstrap import LEVEL, N_BOOT, rate_intervals
 from .delay import UNIT, cell_metrics, paired_delays
 from .ranked import TOLERANCES
 from .reversals import (
-    MATCHED,
     METRICS,
     comparisons,
     completed_units,
@@ -51,7 +51,7 @@ def reversal_table(
     rng: np.random.Generator,
     n_boot: int = N_BOOT,
     level: float = LEVEL,
-    matched: tuple[str, str] = MATCHED,
+    matched: tuple[str, str] = MATCHED_PAIR,
     tolerances: dict[str, float] = TOLERANCES,
 ) -> pd.DataFrame:
     """Reversal rates with cluster-bootstrap intervals, as Table I and §V-A.
@@ -166,7 +166,7 @@ def delay_change(
     *,
     metric: str = "mean_delay",
     reference: str = "homogeneous",
-    matched: tuple[str, str] = MATCHED,
+    matched: tuple[str, str] = MATCHED_PAIR,
 ) -> pd.DataFrame:
     """Shifted minus reference ``metric`` per controller and population [s] (Fig. 2).
 

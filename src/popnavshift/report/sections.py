@@ -12,13 +12,14 @@ from typing import Any
 
 import pandas as pd
 
-from ..analysis import MATCHED, METRICS
+from ..analysis import METRICS
 from ..analysis import paper_reference as paper
 from ..analysis.study import Analysis
 from ..analysis.summary import controller_order
 from ..analysis.surviving import findings_list
 from ..analysis.verdicts import ABOVE
 from ..populations.build import population_order
+from ..populations.identity import MATCHED_PAIR
 from .blocks import Cell, Section, figure, fmt, para, pct, table
 from .figures import METRIC_LABELS, change_rows, controller_label, pop_label, tau_matrix
 
@@ -134,8 +135,8 @@ def reversals_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
     design = (f"main grid, {variants} variants per cell (the paper's design; the answer's "
               "rates pool more seed sets where the study ran them)")
     for comp, title in (("all_pairs", f"All {pops * (pops - 1) // 2} population pairs"),
-                        ("matched", "Matched time-pressure intervention (" + " vs ".join(MATCHED)
-                         + ", same personas)")):
+                        ("matched", "Matched time-pressure intervention ("
+                         + " vs ".join(MATCHED_PAIR) + ", same personas)")):
         sel = t[t["comparison"] == comp]
         if sel.empty:
             s.blocks.append(para(f"{title}: {a.missing.get('matched', 'not available')}.", "note"))

@@ -14,7 +14,7 @@ import pandas as pd
 from ..analysis.study import Analysis
 from ..engine.folder import StudyFolder
 from ..populations.build import population_order
-from ..populations.nulls import parse_null
+from ..populations.identity import PopulationSpec
 from .blocks import Cell, Section, figure, fmt, para, pct, table
 from .figures import controller_label, pop_label
 
@@ -26,11 +26,12 @@ def populations_section(study: StudyFolder, analysed: list[str], figs: dict[str,
     if pops is not None:
         a = pops[pops["mapping"] == "A"] if "mapping" in pops else pops
         n = a.groupby("population")["persona_id"].nunique()
-        nulls = {p: parse_null(p) for p in n.index}
-        order, used = population_order([p for p in n.index if nulls[p] is None]), set(analysed)
+        specs = {p: PopulationSpec.parse(p) for p in n.index}
+        order = population_order([p for p in n.index if not specs[p].is_null])
+        used = set(analysed)
         rows: list[list[Any]] = [[pop_label(p), int(n[p]), "yes" if p in used else "no"]
                                  for p in order]
-        rows += null_rows(n, nulls)
+        rows += null_rows(n, specs)
         s.blocks.append(table(["Population", "Members", "In the analysed runs"], rows,
                               caption="Cohort sizes (null replicates: one line per null design)"))
     caps = {"fig3a_profiles": "(a) Median position of each motion parameter within its range, "
@@ -40,16 +41,16 @@ def populations_section(study: StudyFolder, analysed: list[str], figs: dict[str,
     return s
 
 
-def null_rows(sizes: pd.Series, nulls: dict) -> list[list[str]]:
+def null_rows(sizes: pd.Series, specs: dict[str, PopulationSpec]) -> list[list[str]]:
     """One line per null design among the populations (swap permutations, size-matched
     subsets): how many replicates and populations, and the members of each."""
     rows = []
-    for kind, words in (("swap", "swap permutations of the matched pair (2 arms each)"),
-                        ("sized", "size-matched random subsets of mixed (one per cohort)")):
-        names = [p for p, x in nulls.items() if x is not None and x.kind == kind]
+    for role, words in (("swap_null", "swap permutations of the matched pair (2 arms each)"),
+                        ("sized_null", "size-matched random subsets of mixed (one per cohort)")):
+        names = [p for p, s in specs.items() if s.role == role]
         if not names:
             continue
-        k = len({nulls[p].replicate for p in names})
+        k = len({specs[p].replicate for p in names})
         lo, hi = int(sizes[names].min()), int(sizes[names].max())
         rows.append([f"null: {k} {words}, {len(names)} populations",
                      f"{lo}" if lo == hi else f"{lo}–{hi}", "in the headline tests"])
