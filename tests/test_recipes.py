@@ -145,3 +145,32 @@ def test_a_renamed_part_keeps_its_report_section(tmp_path):
 
     rates = pd.read_csv(tmp_path / "report" / "tables" / "robust_mapping.csv")
     assert set(rates["mapping"]) == {"A", "B"}
+
+
+#: "A report section": a function returning a Section, and one line of SECTIONS.
+SECTION_RECIPE = {
+    "report/study_sections.py": [("", '''
+
+def episodes_count_section(a: Analysis) -> Section:
+    """How many cells the analysis holds (a test section)."""
+    s = Section("episodes", "Cells analysed")
+    s.blocks.append(para(f"{a.cells['cell'].nunique()} cells were analysed."))
+    return s
+''')],
+    "report/page.py": [("    replays_section,\n",
+                        "    episodes_count_section,\n    replays_section,\n"),
+                       ('    ("replays", lambda p: replays_section(p.a)),\n',
+                        '    ("episodes", lambda p: episodes_count_section(p.a)),\n'
+                        '    ("replays", lambda p: replays_section(p.a)),\n')],
+}
+
+
+@pytest.mark.slow
+def test_the_recipe_for_a_report_section(tmp_path):
+    root = package_with(tmp_path, SECTION_RECIPE)
+    folder = tmp_path / "study"
+    run_with(root, study_script(folder, ["reactive", "robot_orca"], ["mixed", "high_caution"]))
+    html = (folder / "report" / "index.html").read_text("utf-8")
+    assert '<section id="episodes">' in html
+    assert html.index('id="episodes"') < html.index('id="replays"')
+    assert "1 cells were analysed." in html

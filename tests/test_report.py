@@ -142,6 +142,9 @@ def test_sections_appear_in_order_sanity_checks_before_any_score(quick):
     ids = re.findall(r'<section id="([a-z0-9]+)">', html)
     assert ids.index("checks") < min(ids.index(s) for s in ("summary", "table1", "table2"))
     assert "the noise floor was not run" in html  # the quick study has no split halves
+    from popnavshift.report.page import SECTIONS
+
+    assert ids == [i for i, _ in SECTIONS]  # the page is its table of sections, in order
 
 
 # --- Numbers equal a recomputation from the Parquet tables --------------------------------------

@@ -132,7 +132,7 @@ def answer_section(tables: dict[str, pd.DataFrame], missing: dict[str, str],
                            "Simultaneous 95% interval", "Decided by", "p (t)", "p (exact)",
                            "p (adjusted)", "Episode-only interval", "Nulls", "Verdict"], rows,
                           caption="Every headline rate against its null",
-                          csv="tables/evidence_headline.csv", collapsed=True))
+                          csv="evidence_headline", collapsed=True))
     if "evidence_nulls" in figs:
         s.blocks.append(figure(figs["evidence_nulls"], out,
                                "Observed reversal rates (red) against every null replicate "
@@ -152,7 +152,7 @@ def _burden_block(burden: pd.DataFrame) -> dict[str, Any]:
     return table(["Comparison", "Burden metric", "Rule", "Burden − robot-time rate",
                   "Same under the null", "Excess", "95% interval", "Decided by", "Verdict"], rows,
                  caption="'Burden reverses more than robot time', tested against the null "
-                 "(every null reverses burden more often too)", csv="tables/evidence_burden.csv")
+                 "(every null reverses burden more often too)", csv="evidence_burden")
 
 
 def ranks_section(tables: dict[str, pd.DataFrame]) -> Section:
@@ -187,7 +187,7 @@ def ranks_section(tables: dict[str, pd.DataFrame]) -> Section:
             rows.append(row)
         s.blocks.append(table(["Population", *[controller_label(c) for c in ctrls]], rows,
                               caption=f"{LABELS[metric]}: rank [interval] · grid mean · P(first)",
-                              csv="tables/evidence_ranks.csv"))
+                              csv="evidence_ranks"))
     return s
 
 

@@ -142,7 +142,7 @@ def reversals_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
             s.blocks.append(para(f"{title}: {a.missing.get('matched', 'not available')}.", "note"))
             continue
         rows = [_rate_row(sel, m, ("all", "completed")) for m in METRICS]
-        s.blocks.append(table(cols, rows, caption=f"{title} — {design}", csv="tables/reversals.csv",
+        s.blocks.append(table(cols, rows, caption=f"{title} — {design}", csv="reversals",
                               groups=groups))
     if "reversal_rates" in figs:
         s.blocks.append(figure(figs["reversal_rates"], out, "Reversal rates with 95% intervals; "
@@ -185,7 +185,7 @@ def noise_section(a: Analysis) -> Section:
              pct(pairs.get((r.cells, r.metric)))] for r in t.itertuples(index=False)]
     s.blocks.append(table(["Split population", "Cells", "Metric", "Reversals / comparable",
                            "Noise floor", "All population pairs"], rows,
-                          csv="tables/noise_floor.csv"))
+                          csv="noise_floor"))
     return s
 
 
@@ -205,7 +205,7 @@ def outcomes_section(a: Analysis) -> Section:
         Cell(fmt(theirs.get(c, {}).get(col), pattern), "paper"))] for col, label, pattern in
         OUTCOME_ROWS if col in t.columns]
     rows.append(["Robot runs"] + [x for c in ctrls for x in (int(t.at[c, "n_runs"]), "")])
-    s.blocks.append(table(cols, rows, csv="tables/controller_outcomes.csv", groups=groups))
+    s.blocks.append(table(cols, rows, csv="controller_outcomes", groups=groups))
     s.blocks.append(para("Delays are the mean over (cell, population) rows of each cell's "
                          "statistic; robot time counts 45 s for failed runs."))
     return s
@@ -233,7 +233,7 @@ def change_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
     rows = [[f"{pop_label(p)} − {pop_label(refs[p])}"] + [
         fmt(wide.loc[(p, refs[p])].get((m, c)), "{:+.2f}") for m in ("mean_delay", "worst_decile")
         for c in ctrls] for p in order]
-    s.blocks.append(table(cols, rows, csv="tables/delay_change.csv", groups=groups))
+    s.blocks.append(table(cols, rows, csv="delay_change", groups=groups))
     sign = paper.MATCHED_CHANGE_SIGN
     s.blocks.append(para("The paper's matched row: lower delay under " + ", ".join(
         controller_label(c) for c, v in sign.items() if v < 0) + "; higher under " + ", ".join(
@@ -266,7 +266,7 @@ def sensitivity_section(a: Analysis, figs: dict[str, Path], out: Path) -> Sectio
         row.append(Cell(fmt(paper.WIDTH_SENSITIVITY.get(float(w))), "paper"))
         rows.append(row)
     cols = ["Width (m)"] + [f"{v[3]} (s)" for v in views] + ["Paper, pooled (s)"]
-    s.blocks.append(table(cols, rows, csv="tables/sensitivity_by_width.csv"))
+    s.blocks.append(table(cols, rows, csv="sensitivity_by_width"))
     return s
 
 
@@ -286,7 +286,7 @@ def tau_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
     rows = [[f"{pop_label(x)} vs {pop_label(y)}"] + [fmt(m.loc[x, y]) for m in mats.values()]
             for x, y in pairs]
     s.blocks.append(table(["Population pair"] + [METRIC_LABELS[m] for m in mats], rows,
-                          csv="tables/kendall_tau.csv", collapsed=True))
+                          csv="kendall_tau", collapsed=True))
     return s
 
 
@@ -305,6 +305,6 @@ def tradeoff_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
              fmt(r.mean_delay), fmt(r.worst_decile), fmt(r.success_pct, "{:.1f}")]
             for r in t.itertuples(index=False)]
     s.blocks.append(table(["Population", "Controller", "Robot time (s)", "Mean delay (s)",
-                           "Worst decile (s)", "Success (%)"], rows, csv="tables/tradeoff.csv",
+                           "Worst decile (s)", "Success (%)"], rows, csv="tradeoff",
                           collapsed=True))
     return s

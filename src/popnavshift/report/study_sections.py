@@ -75,14 +75,14 @@ def checks_section(a: Analysis) -> Section:
         s.blocks.append(table(
             ["Population", "Pedestrians", "Never arrived", "Check", "Travel time mean (s)",
              "p10 (s)", "p50 (s)", "p90 (s)", "Walked mean (m)", "Speed mean (m/s)"], rows,
-            csv="tables/no_robot_checks.csv"))
+            csv="no_robot_checks"))
     share = a.tables.get("paired_share")
     if share is not None:
         s.blocks.append(table(["Controller", "Pedestrian records", "With a paired delay", "Share"],
                               [[controller_label(r.controller), r.n_records, r.n_paired,
                                 pct(r.share)] for r in share.itertuples(index=False)],
                               caption="Paired delay availability (the paper: nearly all)",
-                              csv="tables/paired_share.csv"))
+                              csv="paired_share"))
     return s
 
 
