@@ -13,12 +13,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from example_controller import EXAMPLE, USER_MODULE, install_example
 from popnavshift.engine.study import load_study
 from popnavshift.errors import ConfigError
 from popnavshift.evaluate import card_tables, evaluate, make_card
 from popnavshift.evaluate.card import population_gaps, worst_run
 from popnavshift.tables import check_table
-from test_registries import EXAMPLE, USER_MODULE, install_example
 
 pytestmark = pytest.mark.slow  # the card of the quick study, run and evaluated (minutes)
 

@@ -17,7 +17,7 @@ EPISODES = {"scenes": ["sidewalk"], "widths": [1.8], "densities": [0.06],
 
 def study_script(folder, controllers, populations) -> str:
     """Run a one-part study of ``controllers`` × ``populations`` into ``folder``, report it,
-    and print that the paper's study is still the paper's."""
+    after checking that the paper's study is still the paper's."""
     study = {"name": "recipe", "seed": 0, "personas": {"source": "synthetic", "n": 300},
              "matched_n": 60, "parts": {"main": {"populations": populations,
                                                  "controllers": controllers,

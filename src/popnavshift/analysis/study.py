@@ -23,6 +23,7 @@ from ..tables import NO_ROBOT
 from .delay import cell_metrics, paired_delays
 from .findings import WIDTH_SCENES, Finding, available_findings
 from .paper_reference import REVERSAL_RATE
+from .ranked import names
 from .reversals import comparisons, population_pairs, ranking_tau
 from .summary import (
     controller_outcomes,
@@ -35,6 +36,8 @@ from .summary import (
     sensitivity_by_width,
 )
 
+#: the metrics of the change in delay (paper Fig. 2): the paper's burden metrics
+CHANGE_METRICS: tuple[str, ...] = names("burden", paper=True)
 
 @dataclass
 class Analysis:
@@ -100,8 +103,7 @@ def _delay_change(a: Analysis, cells: pd.DataFrame) -> None:
         a.missing["change"] = ("the change in delay needs the matched pair, or the homogeneous "
                                "reference and a population outside the matched pair")
         return
-    frames = [delay_change(cells, metric=m).assign(metric=m)
-              for m in ("mean_delay", "worst_decile")]
+    frames = [delay_change(cells, metric=m).assign(metric=m) for m in CHANGE_METRICS]
     change = pd.concat(frames, ignore_index=True)
     if change.empty:
         a.missing["change"] = "no cell has a paired delay under both populations of a row"

@@ -24,6 +24,7 @@ from matplotlib.patches import Rectangle  # noqa: E402
 
 from ..analysis import METRICS, RANKED_METRICS  # noqa: E402
 from ..analysis.paper_reference import WIDTH_SENSITIVITY  # noqa: E402
+from ..analysis.study import CHANGE_METRICS  # noqa: E402
 from ..analysis.summary import controller_order  # noqa: E402
 from ..populations.build import POPULATION_GROUPS, population_order  # noqa: E402
 from ..populations.figures import save_figure, write_profile_figures  # noqa: E402
@@ -111,7 +112,7 @@ def plot_delay_change(change: pd.DataFrame) -> plt.Figure:
     The matched row (deadline − base, same personas) is outlined; white lines
     separate the matched pair, source-field cohorts, mixed and probe cohorts.
     """
-    metrics = [m for m in ("mean_delay", "worst_decile") if (change["metric"] == m).any()]
+    metrics = [m for m in CHANGE_METRICS if (change["metric"] == m).any()]
     rows, breaks = change_rows(sorted(change["population"].unique()))
     ctrls = controller_order(change["controller"].unique())
     vmax = float(np.nanmax(np.abs(change["change"].to_numpy(float)))) or 1.0

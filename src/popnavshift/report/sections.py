@@ -14,7 +14,7 @@ import pandas as pd
 
 from ..analysis import METRICS
 from ..analysis import paper_reference as paper
-from ..analysis.study import Analysis
+from ..analysis.study import CHANGE_METRICS, Analysis
 from ..analysis.summary import controller_order
 from ..analysis.surviving import findings_list
 from ..analysis.verdicts import ABOVE
@@ -227,11 +227,11 @@ def change_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
                          values="change")
     cols = ["Shifted − reference"] + [controller_label(c) for c in ctrls] * 2
     groups = [("", 1)] + [(f"{METRIC_LABELS[m]} (s)", len(ctrls))
-                          for m in ("mean_delay", "worst_decile")]
+                          for m in CHANGE_METRICS]
     order = change_rows(wide.index.get_level_values("population"))[0]
     refs = dict(wide.index.tolist())
     rows = [[f"{pop_label(p)} − {pop_label(refs[p])}"] + [
-        fmt(wide.loc[(p, refs[p])].get((m, c)), "{:+.2f}") for m in ("mean_delay", "worst_decile")
+        fmt(wide.loc[(p, refs[p])].get((m, c)), "{:+.2f}") for m in CHANGE_METRICS
         for c in ctrls] for p in order]
     s.blocks.append(table(cols, rows, csv="delay_change", groups=groups))
     sign = paper.MATCHED_CHANGE_SIGN
