@@ -113,6 +113,7 @@ def test_an_injected_crossover_is_found_and_beats_the_swap_null():
     assert set(found["cell"]) <= injected
 
 
+@pytest.mark.slow  # many simulated studies of pure noise (10–20 s)
 def test_pure_noise_keeps_every_verdict_rule_at_its_nominal_rate():
     """30 synthetic matched studies without any population effect, each with 9 swap
     permutations, through the real analysis: the observed pair's verdicts, and every
@@ -238,6 +239,7 @@ def test_cohort_pairs_with_a_true_crossover_beat_the_size_matched_null():
     assert row["p_value"] == pytest.approx(1 / 20) and row["ci_low"] > 0
 
 
+@pytest.mark.slow  # many simulated studies of pure noise (10–20 s)
 def test_cohort_pairs_without_an_effect_do_not_beat_the_size_matched_null():
     p_values = []
     for seed in range(20):
