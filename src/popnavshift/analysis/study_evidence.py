@@ -21,6 +21,8 @@ on the main grid — and computes with :mod:`popnavshift.analysis` (pure functio
 * ``evidence_findings``: the paper's findings under the significance rule
   (:mod:`popnavshift.analysis.surviving`), and ``evidence_burden``: "burden reverses
   more than robot time" against the nulls.
+
+``with_null_rates`` then gives Table I (``reversals``) the null rate of each comparison.
 """
 
 from __future__ import annotations
@@ -172,3 +174,22 @@ def _replicates(runs: pd.DataFrame, peds: pd.DataFrame, design: dict, observed: 
                             level=level, full=full)
     return {"curve": curve.assign(comparison=label),
             "replicability": replicability(runs, peds, design, study_seed=seed)}
+
+
+def with_null_rates(reversals: pd.DataFrame, tables: dict[str, pd.DataFrame]) -> pd.DataFrame:
+    """Table I with ``null_rate``: the raw rate of each comparison's null at Table I's design
+    (one seed set, all cells) — the matched pair's swap null on the study seed's episodes,
+    the pairs' size-matched null on the main grid; NaN where the study ran no null."""
+    null = {}
+    curve, head = tables.get("evidence_curve"), tables.get("evidence_headline")
+    if curve is not None and not curve.empty:
+        c = curve[(curve["seed_sets"] == 1) & (curve["rule"] == "raw")
+                  & (curve["comparison"] == "matched")]
+        null.update({("matched", m): v for m, v in zip(c["metric"], c["null_mean"], strict=True)})
+    if head is not None and not head.empty:
+        h = head[(head["rule"] == "raw") & (head["seed_sets"] == 1)]
+        for r in h.itertuples():
+            null.setdefault((r.comparison, r.metric), r.null_mean)
+    key = zip(reversals["comparison"], reversals["metric"], strict=True)
+    rates = [null.get(k, np.nan) for k in key]
+    return reversals.assign(null_rate=np.where(reversals["cells"] == "all", rates, np.nan))

@@ -189,22 +189,3 @@ def ranks_section(tables: dict[str, pd.DataFrame]) -> Section:
                               caption=f"{LABELS[metric]}: rank [interval] · grid mean · P(first)",
                               csv="evidence_ranks"))
     return s
-
-
-def with_null_rates(reversals: pd.DataFrame, tables: dict[str, pd.DataFrame]) -> pd.DataFrame:
-    """Table I with ``null_rate``: the raw rate of each comparison's null at Table I's design
-    (one seed set, all cells) — the matched pair's swap null on the study seed's episodes,
-    the pairs' size-matched null on the main grid; NaN where the study ran no null."""
-    null = {}
-    curve, head = tables.get("evidence_curve"), tables.get("evidence_headline")
-    if curve is not None and not curve.empty:
-        c = curve[(curve["seed_sets"] == 1) & (curve["rule"] == "raw")
-                  & (curve["comparison"] == "matched")]
-        null.update({("matched", m): v for m, v in zip(c["metric"], c["null_mean"], strict=True)})
-    if head is not None and not head.empty:
-        h = head[(head["rule"] == "raw") & (head["seed_sets"] == 1)]
-        for r in h.itertuples():
-            null.setdefault((r.comparison, r.metric), r.null_mean)
-    key = zip(reversals["comparison"], reversals["metric"], strict=True)
-    rates = [null.get(k, np.nan) for k in key]
-    return reversals.assign(null_rate=np.where(reversals["cells"] == "all", rates, np.nan))

@@ -20,14 +20,13 @@ import pandas as pd
 
 from ..analysis.audit_verdict import audit_tables
 from ..analysis.study import analyse
-from ..analysis.study_evidence import evidence_tables
+from ..analysis.study_evidence import evidence_tables, with_null_rates
 from ..analysis.study_robustness import robustness_tables
 from ..engine.folder import main_grid, read_study_folder
 from ..engine.respondent_tables import read_respondent_tables
 from ..hashing import digest
 from ..io import write_atomic, write_json, write_text
 from ..version import __version__
-from .answer import with_null_rates
 from .answer_figures import write_answer_figures
 from .blocks import TABLES_DIR, csv_path
 from .figures import profile_figures, write_figures
