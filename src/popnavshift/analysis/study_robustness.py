@@ -90,7 +90,7 @@ def robustness_tables(
         found = None if study.study is None else study.study.part_with(role)
         got = None if found is None else part_cells(study, found[0])
         if got is None:
-            missing[role] = f"the study has no {role} part (or it has no runs)"
+            missing[role] = f"the study has no part with role {role!r} (or it has no runs)"
             continue
         tables.update(compute(*got, np.random.default_rng(rng_seed), n_boot))
     spread = seed_spread(study, rng_seed=rng_seed, n_boot=n_boot)

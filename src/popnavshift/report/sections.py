@@ -117,7 +117,7 @@ def _rate_row(t: pd.DataFrame, metric: str, scopes: tuple[str, ...]) -> list[Any
 
 def reversals_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
     s = Section("table1", "Ranking reversals across populations (paper Table I, §V-A)",
-                missing=a.missing.get("table1", ""))
+                missing=a.missing.get("reversals", ""))
     t = a.tables.get("reversals")
     if t is None:
         return s
@@ -168,7 +168,7 @@ def descriptive_note(head: pd.DataFrame | None, power: pd.DataFrame | None) -> s
 
 def noise_section(a: Analysis) -> Section:
     s = Section("noise", "Noise floor: reversals between two random halves of one population",
-                missing=a.missing.get("noise", ""))
+                missing=a.missing.get("noise_floor", ""))
     t = a.tables.get("noise_floor")
     if t is None:
         return s
@@ -191,7 +191,7 @@ def noise_section(a: Analysis) -> Section:
 
 def outcomes_section(a: Analysis) -> Section:
     s = Section("table2", "Controller outcomes (paper Table II, §V-C)",
-                missing=a.missing.get("table2", ""))
+                missing=a.missing.get("controller_outcomes", ""))
     t = a.tables.get("controller_outcomes")
     if t is None:
         return s
@@ -213,7 +213,7 @@ def outcomes_section(a: Analysis) -> Section:
 
 def change_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
     s = Section("change", "Change in pedestrian delay under population shift (paper Fig. 2)",
-                missing=a.missing.get("change", ""))
+                missing=a.missing.get("delay_change", ""))
     t = a.tables.get("delay_change")
     if t is None:
         return s
@@ -243,7 +243,7 @@ def change_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
 
 def sensitivity_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
     s = Section("sensitivity", "Population sensitivity vs available width (paper Fig. 4)",
-                missing=a.missing.get("sensitivity", ""))
+                missing=a.missing.get("sensitivity_by_width", ""))
     t = a.tables.get("sensitivity_by_width")
     if t is None:
         return s
@@ -271,7 +271,8 @@ def sensitivity_section(a: Analysis, figs: dict[str, Path], out: Path) -> Sectio
 
 
 def tau_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
-    s = Section("tau", "Kendall τ between population rankings", missing=a.missing.get("tau", ""))
+    s = Section("tau", "Kendall τ between population rankings",
+                missing=a.missing.get("kendall_tau", ""))
     t = a.tables.get("kendall_tau")
     if t is None:
         return s

@@ -59,7 +59,7 @@ def null_rows(sizes: pd.Series, specs: dict[str, PopulationSpec]) -> list[list[s
 
 def checks_section(a: Analysis) -> Section:
     s = Section("checks", "No-robot sanity checks (before any controller is scored)",
-                missing=a.missing.get("checks", ""))
+                missing=a.missing.get("no_robot_checks", ""))
     t = a.tables.get("no_robot_checks")
     if t is not None:
         t = t.set_index("population").loc[population_order(t["population"])].reset_index()
