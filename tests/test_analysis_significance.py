@@ -21,10 +21,9 @@ from popnavshift.analysis.significance import (
     orderings,
 )
 from popnavshift.analysis.verdicts import ABOVE, BELOW, clopper_pearson
-from popnavshift.populations.nulls import swap_name
+from popnavshift.populations.identity import MATCHED_PAIR, PopulationSpec
 from synth_study import crossover, no_effect, synthetic_cells, synthetic_study
 
-MATCHED = ("matched_base", "matched_deadline")
 CROSS_CELLS = (0, 1, 2, 3, 4, 5)
 
 
@@ -34,15 +33,15 @@ def swap_study(n_null: int, *, inject: float, seed: int, **kw):
     pops = {"matched_base": crossover(CROSS_CELLS, inject, -1.0),
             "matched_deadline": crossover(CROSS_CELLS, inject, +1.0)}
     for k in range(1, n_null + 1):
-        pops[swap_name(k, "a")] = no_effect
-        pops[swap_name(k, "b")] = no_effect
+        pops[PopulationSpec.swap(k, "a").name] = no_effect
+        pops[PopulationSpec.swap(k, "b").name] = no_effect
     return synthetic_study(pops, seed=seed, **kw)
 
 
 def analyse_matched(runs, peds, *, n_boot=200, seed=0, metrics=("mean_delay", "robot_time")):
     pops = list(runs["population"].unique())
-    designs = headline_designs(pops, list(MATCHED))
-    return run_tests(runs, peds, designs, list(MATCHED), rng=np.random.default_rng(seed),
+    designs = headline_designs(pops, list(MATCHED_PAIR))
+    return run_tests(runs, peds, designs, list(MATCHED_PAIR), rng=np.random.default_rng(seed),
                      n_boot=n_boot, metrics=metrics)
 
 
@@ -114,6 +113,7 @@ def test_an_injected_crossover_is_found_and_beats_the_swap_null():
     assert set(found["cell"]) <= injected
 
 
+@pytest.mark.slow  # many simulated studies of pure noise (10–20 s)
 def test_pure_noise_keeps_every_verdict_rule_at_its_nominal_rate():
     """30 synthetic matched studies without any population effect, each with 9 swap
     permutations, through the real analysis: the observed pair's verdicts, and every
@@ -239,6 +239,7 @@ def test_cohort_pairs_with_a_true_crossover_beat_the_size_matched_null():
     assert row["p_value"] == pytest.approx(1 / 20) and row["ci_low"] > 0
 
 
+@pytest.mark.slow  # many simulated studies of pure noise (10–20 s)
 def test_cohort_pairs_without_an_effect_do_not_beat_the_size_matched_null():
     p_values = []
     for seed in range(20):

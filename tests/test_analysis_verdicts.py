@@ -143,6 +143,7 @@ def null_table(draws: np.ndarray, comparison: str = "matched", rule: str = "raw"
                          for i, row in enumerate(draws) for k, x in enumerate(row)])
 
 
+@pytest.mark.slow  # many simulated studies of pure noise (10–20 s)
 def test_calibration_of_pure_noise_is_within_nominal_and_of_a_bad_rule_is_not():
     rng = np.random.default_rng(11)
     nulls = null_table(rates(rng, (300, 10)))
@@ -214,6 +215,7 @@ def test_decided_rows_get_no_advice():
     assert out.loc[2, "limit"].startswith("nothing reachable")  # a null is above it
 
 
+@pytest.mark.slow  # many simulated studies of pure noise (10–20 s)
 def test_the_headline_table_as_a_whole_claims_at_most_its_nominal_rate():
     """The report decides its m rates together (each at 5%/m): on placebo tables of pure
     noise, any claim of the whole table is false, and happens at most 5% of the time."""

@@ -42,6 +42,7 @@ def quick(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess,
     return root / "study-quick", first, second
 
 
+@pytest.mark.slow  # the quick study run and compared through the CLI (~30 s)
 def test_compare_writes_one_page_and_one_table_with_a_row_per_controller(quick):
     folder, first, _ = quick
     assert first.returncode == 0, first.stderr
@@ -63,6 +64,7 @@ def test_compare_writes_one_page_and_one_table_with_a_row_per_controller(quick):
     assert "early\\_yield" in (out / "compare.tex").read_text()
 
 
+@pytest.mark.slow  # the quick study run and compared through the CLI (~30 s)
 def test_each_card_writes_its_verdict_and_every_table_as_csv(quick):
     folder, _, _ = quick
     for ctrl in FOUR:
@@ -79,6 +81,7 @@ def test_each_card_writes_its_verdict_and_every_table_as_csv(quick):
         assert "\\toprule" in (card / "outcomes.tex").read_text()
 
 
+@pytest.mark.slow  # the quick study run and compared through the CLI (~30 s)
 def test_a_second_compare_reads_the_cards_and_simulates_nothing(quick):
     _, _, second = quick
     assert second.returncode == 0, second.stderr

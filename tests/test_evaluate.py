@@ -13,12 +13,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from example_controller import EXAMPLE, USER_MODULE, install_example
 from popnavshift.engine.study import load_study
 from popnavshift.errors import ConfigError
 from popnavshift.evaluate import card_tables, evaluate, make_card
 from popnavshift.evaluate.card import population_gaps, worst_run
 from popnavshift.tables import check_table
-from test_registries import EXAMPLE, USER_MODULE, install_example
 
 CLASS_SPEC = "slow_near_peds.controller:SlowNearPeds"
 #: `evaluate` is registered by importing popnavshift.cli.evaluate; importing it here too
@@ -56,6 +56,7 @@ def user_path(tmp_path_factory):
         yield root
 
 
+@pytest.mark.slow  # runs and evaluates a study (the quick one, or a small one)
 def test_one_command_writes_the_card_and_the_second_reuses_every_run(first_and_second):
     root, first, second = first_and_second
     assert first.returncode == 0, first.stderr
@@ -69,6 +70,7 @@ def test_one_command_writes_the_card_and_the_second_reuses_every_run(first_and_s
     assert (folder / "card.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+@pytest.mark.slow  # runs and evaluates a study (the quick one, or a small one)
 def test_the_card_shows_every_section(first_and_second):
     root, _, _ = first_and_second
     (folder,) = (root / "study-quick" / "evaluate").iterdir()
@@ -86,6 +88,7 @@ def test_the_card_shows_every_section(first_and_second):
     assert meta["contract_check"] == "passed"
 
 
+@pytest.mark.slow  # runs and evaluates a study (the quick one, or a small one)
 def test_an_entry_point_name_runs_the_same_controller(first_and_second, user_path):
     root, _, _ = first_and_second
     logs: list[str] = []
@@ -101,6 +104,7 @@ def test_an_entry_point_name_runs_the_same_controller(first_and_second, user_pat
     pd.testing.assert_frame_equal(by_name, by_class)  # same class, same runs
 
 
+@pytest.mark.slow  # runs and evaluates a study (the quick one, or a small one)
 def test_a_controller_that_raises_is_recorded_and_the_card_says_so(first_and_second, user_path):
     root, _, _ = first_and_second
     ev = evaluate("user_ctrls:RaisesNearPeds", load_study("quick"), root / "study-quick",
@@ -126,6 +130,7 @@ def test_bad_controllers_are_one_line_errors_before_anything_runs(tmp_path):
     assert not (tmp_path / "s" / "stages.json").exists()
 
 
+@pytest.mark.slow  # runs and evaluates a study (the quick one, or a small one)
 def test_the_bootstrap_seed_is_the_only_randomness(first_and_second):
     root, _, _ = first_and_second
     ev_runs = pd.concat([pd.read_parquet(root / "study-quick" / "runs.parquet"),
@@ -198,6 +203,7 @@ def test_an_edited_controller_module_gets_a_new_stamp(tmp_path, monkeypatch):
     assert run_code_stamp("stamped_ctrl:Stamped") != run_stamp
 
 
+@pytest.mark.slow  # runs and evaluates a study (the quick one, or a small one)
 def test_a_study_without_no_robot_runs_or_a_baseline_gets_them_run_once(tmp_path):
     from popnavshift.engine.study import study_from_dict
 
@@ -220,6 +226,7 @@ def test_a_study_without_no_robot_runs_or_a_baseline_gets_them_run_once(tmp_path
         evaluate("HL", study, tmp_path / "lean", baselines=("reactiv",), show_progress=False)
 
 
+@pytest.mark.slow  # runs and evaluates a study (the quick one, or a small one)
 def test_a_study_that_adds_the_evaluated_controller_reuses_its_runs(tmp_path):
     """`evaluate` and `run` share one batch executor and one batch id: the runs an
     evaluation made are the study's batches once the study plans them."""
@@ -241,6 +248,7 @@ def test_a_study_that_adds_the_evaluated_controller_reuses_its_runs(tmp_path):
     assert report.planned == 12 and report.executed == 0 and report.reused == 12
 
 
+@pytest.mark.slow  # runs and evaluates a study (the quick one, or a small one)
 def test_a_controller_written_from_scratch_on_a_bare_behavior_moves(first_and_second):
     """The docs' from-scratch example (examples/go_to_goal) evaluated on the quick study,
     reusing the baselines the first fixture built: the robot reaches its goal."""
@@ -259,6 +267,7 @@ def test_a_controller_written_from_scratch_on_a_bare_behavior_moves(first_and_se
     assert json.loads((card / "card.json").read_text())["verdict"]["label"]
 
 
+@pytest.mark.slow  # runs and evaluates a study (the quick one, or a small one)
 def test_load_reaches_the_evaluated_controllers_runs(first_and_second):
     import popnavshift
 
@@ -274,6 +283,7 @@ def test_load_reaches_the_evaluated_controllers_runs(first_and_second):
     assert not runs.duplicated("run_id").any()
 
 
+@pytest.mark.slow  # runs and evaluates a study (the quick one, or a small one)
 def test_results_and_cards_as_dataframes_from_python(first_and_second):
     import popnavshift
 

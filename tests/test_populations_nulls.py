@@ -9,12 +9,10 @@ from popnavshift.errors import ConfigError
 from popnavshift.personas.synthetic import generate_personas
 from popnavshift.personas.variants import matched_ids
 from popnavshift.populations.build import POPULATIONS, membership
+from popnavshift.populations.identity import PopulationSpec
 from popnavshift.populations.nulls import (
     null_populations,
-    parse_null,
-    sized_name,
     sized_subset,
-    swap_name,
     swap_variants,
 )
 from popnavshift.profiles.mappings import build_profiles
@@ -76,10 +74,23 @@ def test_sized_subset_is_deterministic_and_sorted():
     assert one != sized_subset(src, 10, "low_robot_trust", 1, seed=0)
 
 
-def test_null_names_parse_and_unknown_ones_do_not():
-    assert parse_null("matched_swap12_b").replicate == 12
-    assert parse_null("high_caution_sized3").of == "high_caution"
-    assert parse_null("matched_swap0_a") is None and parse_null("mixed") is None
+def swap_name(k: int, arm: str) -> str:
+    return PopulationSpec.swap(k, arm).name
+
+
+def sized_name(of: str, k: int) -> str:
+    return PopulationSpec.sized(of, k).name
+
+
+def test_population_names_parse_into_their_spec_and_back():
+    assert PopulationSpec.parse("matched_swap12_b") == PopulationSpec("matched", "swap_null",
+                                                                       12, "b")
+    assert PopulationSpec.parse("high_caution_sized3") == PopulationSpec.sized("high_caution", 3)
+    assert PopulationSpec.parse("mixed_half_b") == PopulationSpec("mixed", "half", 0, "b")
+    for name in ("matched_swap0_a", "mixed", "high_caution_sized0"):  # not nulls: replicate 0
+        assert PopulationSpec.parse(name) == PopulationSpec(name)
+    for name in ("matched_swap3_a", "low_robot_trust_sized12", "mixed_half_a", "homogeneous"):
+        assert PopulationSpec.parse(name).name == name
 
 
 def test_a_swap_null_part_stands_for_the_matched_pair():

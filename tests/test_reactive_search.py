@@ -14,6 +14,7 @@ import math
 import numpy as np
 import pytest
 
+from popnavshift.sim.controllers import _geometry as G
 from popnavshift.sim.controllers import _rollout as R
 from popnavshift.sim.controllers.reactive import CLEARANCE_CAP, PARAMS
 
@@ -62,7 +63,7 @@ def grid_search(x, y, th, gx, gy, cfg, peds, walls, discs):
             d_end = math.hypot(gx - xe, gy - ye)
             heading, open_path = 1.0, cap
             if d_end > tol:
-                heading = math.cos(R.wrap_angle(math.atan2(gy - ye, gx - xe) - th_end))
+                heading = math.cos(G.wrap_angle(math.atan2(gy - ye, gx - xe) - th_end))
                 open_path = R.sight_clearance(xe, ye, gx, gy, sight, horizon, radius, peds,
                                               walls, discs) - buffer
             score = (weights[0] * (d0 - d_end) / reach + weights[1] * heading
@@ -83,8 +84,8 @@ def _scenario(rng: np.random.Generator):
     n = int(rng.integers(0, 6))
     peds = np.column_stack([rng.uniform(-3, 3, n), rng.uniform(-3, 3, n),
                             rng.uniform(-1.2, 1.2, n), rng.uniform(-1.2, 1.2, n),
-                            np.full(n, 0.25)]) if n else R.EMPTY_PEDS
-    walls, discs = R.EMPTY_WALLS, R.EMPTY_DISCS
+                            np.full(n, 0.25)]) if n else G.EMPTY_PEDS
+    walls, discs = G.EMPTY_WALLS, G.EMPTY_DISCS
     if rng.random() < 0.5:
         half = rng.uniform(0.8, 2.5)
         walls = np.array([[-20, -half, 20, -half], [-20, half, 20, half]], dtype=np.float64)

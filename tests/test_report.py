@@ -29,22 +29,9 @@ from popnavshift.engine.runner import run_study
 from popnavshift.engine.study import study_from_dict
 from popnavshift.errors import InputError
 from popnavshift.report import build_report
+from report_study import STUDY
 
 N_BOOT = 200
-#: Like the built-in quick study (pinned here so its edits cannot break these tests):
-#: 4 populations with the matched pair, 10 episodes, narrow and wide, all 3 controllers.
-STUDY = {
-    "name": "report-test",
-    "seed": 0,
-    "personas": {"source": "synthetic", "n": 300},
-    "matched_n": 60,
-    "mappings": ["A"],
-    "parts": {"main": {
-        "populations": ["homogeneous", "mixed", "matched_base", "matched_deadline"],
-        "episodes": {"scenes": ["sidewalk", "head_on", "bottleneck", "crossing", "obstruction"],
-                     "widths": [1.8, 4.2], "densities": [0.06], "robot_speeds": [1.0],
-                     "variants": [1]}}},
-}
 EVIL = "<script>alert(1)</script>"
 STUDY_FILES = ("runs.parquet", "pedestrians.parquet", "populations.parquet", "episodes.parquet",
                "manifest.json", "personas.json", "responses.json", "figures")
@@ -142,6 +129,9 @@ def test_sections_appear_in_order_sanity_checks_before_any_score(quick):
     ids = re.findall(r'<section id="([a-z0-9]+)">', html)
     assert ids.index("checks") < min(ids.index(s) for s in ("summary", "table1", "table2"))
     assert "the noise floor was not run" in html  # the quick study has no split halves
+    from popnavshift.report.page import SECTIONS
+
+    assert ids == [i for i, _ in SECTIONS]  # the page is its table of sections, in order
 
 
 # --- Numbers equal a recomputation from the Parquet tables --------------------------------------

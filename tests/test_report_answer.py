@@ -20,6 +20,8 @@ from popnavshift.engine.runner import run_study
 from popnavshift.engine.study import study_from_dict
 from popnavshift.report import build_report
 
+pytestmark = pytest.mark.slow  # each test reads a study run and reported once (~1 min)
+
 EPISODES = {"scenes": ["sidewalk", "bottleneck"], "widths": [1.8, 4.2], "densities": [0.06],
             "robot_speeds": [1.0], "variants": [1, 2]}
 STUDY = {

@@ -21,7 +21,7 @@ import pytest
 from popnavshift.engine.runner import run_study
 from popnavshift.engine.study import study_from_dict
 from popnavshift.report import build_report
-from test_report import STUDY  # the same small study (tests/ is on sys.path, as for llm_server)
+from report_study import STUDY  # the same small study as test_report.py
 
 CANDIDATES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -36,9 +36,9 @@ def chromium() -> str | None:
 
 
 BROWSER = chromium()
-pytestmark = pytest.mark.skipif(
+pytestmark = [pytest.mark.slow, pytest.mark.skipif(
     BROWSER is None, reason="no Chromium found (apt-get install -y chromium); "
-    f"looked for {', '.join(CANDIDATES)} and /usr/bin/chromium")
+    f"looked for {', '.join(CANDIDATES)} and /usr/bin/chromium")]
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,12 @@ import pandas as pd
 
 from popnavshift.analysis import paper_reference as paper
 from popnavshift.populations.perturb import ProfileSet
-from popnavshift.report.robustness import robustness_sections
+from popnavshift.report.robustness import (
+    backend_section,
+    mapping_section,
+    respondent_section,
+    structure_section,
+)
 
 
 def rates(labels: list[str], metric: str = "mean_delay") -> pd.DataFrame:
@@ -28,7 +33,9 @@ def table_rows(section) -> list[list[str]]:
 
 
 def sections(tables):
-    return {s.id: s for s in robustness_sections(tables, {}, "the rule surrogate")}
+    return {s.id: s for s in (mapping_section(tables, ""), structure_section(tables, ""),
+                              backend_section(tables, ""),
+                              respondent_section(tables, "", "the rule surrogate"))}
 
 
 def test_structure_rows_are_named_and_matched_to_the_paper_by_their_columns():

@@ -15,7 +15,7 @@ from popnavshift.engine.worker import Context, run_batch
 from popnavshift.episodes import assign_slots, get_episode
 from popnavshift.sim.quiet import NotQuiet
 from popnavshift.sim.run import simulate
-from test_sim_run import Orca, Straight, members, one_pedestrian, rows
+from sim_helpers import Orca, Straight, members, one_pedestrian, rows
 
 EPISODES = ("head_on-w2.4-d0.06-s1.0-v1", "sidewalk-w3.0-d0.12-s0.6-v2",
             "crossing-w1.8-d0.2-s1.0-v1", "obstruction-w4.2-d0.12-s0.6-v3",

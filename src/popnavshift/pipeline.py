@@ -25,6 +25,7 @@ from .personas.load import load_personas
 from .personas.variants import MATCHED_N_DEFAULT, matched_ids
 from .populations.build import POPULATIONS, SPLIT_HALVES, attach_profiles, membership
 from .populations.figures import write_profile_figures
+from .populations.identity import MATCHED_PAIR
 from .populations.perturb import (
     BLOCKS,
     label,
@@ -201,7 +202,7 @@ def run_populations(folder: Path, s: PopulationSettings) -> pd.DataFrame:
         if set_label == s.respondent2_label:
             # a second respondent answered only the matched pair: those populations only
             have = set(these.loc[these["variant"] == "deadline", "persona_id"])
-            pair = these_members["population"].isin(["matched_base", "matched_deadline"])
+            pair = these_members["population"].isin(MATCHED_PAIR)
             these_members = these_members[pair & these_members["persona_id"].isin(have)]
         tables.append(attach_profiles(these_members, these))
     if s.structure:

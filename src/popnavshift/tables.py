@@ -264,9 +264,6 @@ EPISODES = declare(
 RUN_KEY: tuple[str, ...] = ("episode", "population", "controller", "backend", "mapping")
 NO_ROBOT = "none"
 """The ``controller`` value of a no-robot baseline run."""
-#: the paper's controllers, in its order (registered in ``sim.controllers.builtin``,
-#: declared here so that the analysis reads them without loading the simulator)
-BUILTIN_CONTROLLERS: tuple[str, ...] = ("reactive", "early_yield", "robot_orca")
 #: how a run's profile set was made, as columns (values:
 #: :meth:`popnavshift.populations.perturb.ProfileSet.columns`)
 PROFILE_SET_COLUMNS: tuple[str, ...] = (

@@ -11,14 +11,12 @@ from .delay import (
     cell_metrics,
     episode_cells,
     paired_delays,
-    tail_count,
     worst_decile,
 )
 from .findings import Finding, paper_findings
+from .ranked import RANKED_METRICS, TOLERANCES, RankedMetric, tail_count
 from .reversals import (
-    MATCHED,
     METRICS,
-    TOLERANCES,
     cluster_counts,
     comparisons,
     completed_units,
@@ -42,10 +40,11 @@ from .summary import (
 )
 
 __all__ = [
-    "MATCHED",
     "METRICS",
+    "RANKED_METRICS",
     "TOLERANCES",
     "Finding",
+    "RankedMetric",
     "bootstrap_ratio",
     "cell_key",
     "cell_metrics",

@@ -15,8 +15,8 @@ import pandas as pd
 
 from ..errors import InputError
 from ..tables import NO_ROBOT
+from .ranked import RANKED_METRICS, TAIL_SHARE, Pooled, tail_count
 
-CVAR_SHARE = 0.1  # the upper tail of the CVaR-90 delay statistic
 CELL_COLUMNS: tuple[str, ...] = ("scene", "width", "density", "robot_speed")
 #: What a no-robot baseline shares with the robot runs it is paired with (besides ``slot``).
 PAIR_KEY: tuple[str, ...] = ("episode", "population", "backend", "mapping")
@@ -95,11 +95,6 @@ def paired_delays(pedestrians: pd.DataFrame) -> pd.DataFrame:
     return both[[*out, "delay", "added_distance"]].reset_index(drop=True)
 
 
-def tail_count(n: int | np.ndarray) -> int | np.ndarray:
-    """⌈0.1 n⌉ = ⌈n / 10⌉ in integer arithmetic (exact for any n; 0 for n = 0)."""
-    return -(-n // 10)
-
-
 def worst_decile(delays: np.ndarray) -> float:
     """Mean of the largest ⌈0.1 n⌉ of ``delays`` (shape (n,), [s]); NaN when n = 0."""
     x = np.sort(np.asarray(delays, dtype=float))[::-1]
@@ -108,7 +103,7 @@ def worst_decile(delays: np.ndarray) -> float:
     return float(x[: tail_count(x.size)].mean())
 
 
-def cvar(delays: np.ndarray, share: float = CVAR_SHARE) -> float:
+def cvar(delays: np.ndarray, share: float = TAIL_SHARE) -> float:
     """CVaR at level 1 − ``share``: the mean of the largest ``share`` of ``delays`` [s].
 
     With n records the tail holds t = share · n of them (at least 1): the largest ⌊t⌋
@@ -125,25 +120,13 @@ def cvar(delays: np.ndarray, share: float = CVAR_SHARE) -> float:
     return float((w * x).sum() / t)
 
 
-def _delay_stats(paired: pd.DataFrame, eps: pd.DataFrame) -> pd.DataFrame:
-    """Per CELL_KEY: n_paired, mean_delay, worst_decile, cvar90, mean_added_distance."""
+def _pooled(robot: pd.DataFrame, paired: pd.DataFrame, eps: pd.DataFrame) -> Pooled:
+    """The robot runs and paired delays grouped by CELL_KEY, records largest first."""
     p = paired.merge(eps[["episode", "cell"]], on="episode", how="inner")
     p = p.sort_values("delay", ascending=False, kind="stable")
     g = p.groupby(list(CELL_KEY), sort=False)
-    rank = g.cumcount().to_numpy()
-    n = g["delay"].transform("size").to_numpy()
-    tail = p[rank < tail_count(n)].groupby(list(CELL_KEY))["delay"].mean()
-    t = np.maximum(CVAR_SHARE * n, 1.0)
-    weight = np.clip(t - rank, 0.0, 1.0)
-    p = p.assign(_wx=weight * p["delay"].to_numpy() / t)
-    stats = g.agg(
-        n_paired=("delay", "size"),
-        mean_delay=("delay", "mean"),
-        mean_added_distance=("added_distance", "mean"),
-    )
-    stats["worst_decile"] = tail
-    stats["cvar90"] = p.groupby(list(CELL_KEY))["_wx"].sum()
-    return stats
+    return Pooled(robot.groupby(list(CELL_KEY)), p, g.cumcount().to_numpy(),
+                  g["delay"].transform("size").to_numpy(), list(CELL_KEY))
 
 
 def cell_metrics(runs: pd.DataFrame, paired: pd.DataFrame) -> pd.DataFrame:
@@ -156,12 +139,12 @@ def cell_metrics(runs: pd.DataFrame, paired: pd.DataFrame) -> pd.DataFrame:
     Returns:
       One row per robot controller with columns ``backend, mapping, cell,
       population, controller, scene, width, density, robot_speed``;
-      ``n_runs`` (variants run); ``robot_time`` [s], the mean over variants of
-      the run's robot time (45 s for failed runs); ``success_share`` in [0, 1];
-      ``completed`` (every variant run succeeded); ``n_paired``; ``mean_delay``
-      [s], mean over the pooled paired delays; ``worst_decile`` [s], mean of the
-      largest ⌈0.1 n⌉ of them; ``cvar90`` [s], CVaR at 90 % of them (:func:`cvar`);
-      ``mean_added_distance`` [m]. The delay columns
+      ``n_runs`` (variants run); the robot's ranked metrics
+      (:data:`popnavshift.analysis.ranked.RANKED_METRICS`, e.g. ``robot_time`` [s], the
+      mean over variants of the run's robot time, 45 s for failed runs);
+      ``success_share`` in [0, 1]; ``completed`` (every variant run succeeded);
+      ``n_paired``; the burden metrics over the pooled paired delays (``mean_delay``,
+      ``worst_decile``, ``cvar90`` [s]); ``mean_added_distance`` [m]. The delay columns
       are NaN and ``n_paired`` is 0 when the cell has no paired record.
     """
     eps = episode_cells(runs)
@@ -170,17 +153,19 @@ def cell_metrics(runs: pd.DataFrame, paired: pd.DataFrame) -> pd.DataFrame:
         raise InputError("runs table: duplicate run (episode, population, controller, backend, "
                          "mapping)")
     robot = robot.assign(success=robot["outcome"] == "success")
-    g = robot.groupby(list(CELL_KEY))
-    out = g.agg(
-        n_runs=("episode", "size"),
-        robot_time=("robot_time", "mean"),
-        success_share=("success", "mean"),
-    )
+    pooled = _pooled(robot, paired, eps)
+    g = pooled.runs
+    out = g.agg(n_runs=("episode", "size"), success_share=("success", "mean"))
     out["completed"] = g["success"].all()
-    out = out.join(_delay_stats(paired, eps), how="left")
+    records = pooled.records.groupby(pooled.key, sort=False)
+    out = out.join(records.agg(n_paired=("delay", "size"),
+                               mean_added_distance=("added_distance", "mean")), how="left")
     out["n_paired"] = out["n_paired"].fillna(0).astype(np.int64)
+    for metric in RANKED_METRICS:
+        out[metric.name] = metric.point(pooled)
     cells = eps.drop(columns=["episode", "variant"]).drop_duplicates("cell")
     out = out.reset_index().merge(cells, on="cell", how="left")
-    cols = [*CELL_KEY, *CELL_COLUMNS, "n_runs", "robot_time", "success_share", "completed",
-            "n_paired", "mean_delay", "worst_decile", "cvar90", "mean_added_distance"]
+    ranked = {a: [m.name for m in RANKED_METRICS if m.aspect == a] for a in ("robot", "burden")}
+    cols = [*CELL_KEY, *CELL_COLUMNS, "n_runs", *ranked["robot"], "success_share", "completed",
+            "n_paired", *ranked["burden"], "mean_added_distance"]
     return out[cols].sort_values(list(CELL_KEY), ignore_index=True)

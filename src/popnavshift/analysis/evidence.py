@@ -21,11 +21,10 @@ import pandas as pd
 
 from .delay import cell_metrics, paired_delays
 from .nulls import CI_LEVEL, null_test
+from .ranked import RANKED_NAMES
 from .resample import build_design, episode_weights, resampled_metrics
 from .significance import ALPHA, LEVEL, Orderings, crossover_tests, orderings
 
-#: The metrics the significance analysis ranks: the paper's three and CVaR-90.
-EVIDENCE_METRICS: tuple[str, ...] = ("robot_time", "mean_delay", "worst_decile", "cvar90")
 N_BOOT = 1000
 
 
@@ -56,7 +55,7 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
                      designs: dict[str, tuple[list, list]], observed: Sequence[str], *,
                      rng: np.random.Generator, n_boot: int = N_BOOT, level: float = LEVEL,
                      alpha: float = ALPHA, method: str = "holm",
-                     metrics: Sequence[str] = EVIDENCE_METRICS,
+                     metrics: Sequence[str] = RANKED_NAMES,
                      ci_level: float = CI_LEVEL, rates_only: bool = False) -> Tested:
     """Every comparison design of ``designs`` tested on ``runs`` (see the module doc).
 

@@ -14,9 +14,10 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from ..tables import BUILTIN_CONTROLLERS
+from ..paper import PAPER_CONTROLLERS
+from ..populations.identity import MATCHED_PAIR
 from .paper_reference import MATCHED_CHANGE_SIGN, TAIL_TO_MEAN_RATIO
-from .reversals import MATCHED, METRICS
+from .reversals import METRICS
 
 
 class Finding(NamedTuple):
@@ -95,7 +96,7 @@ def controller_extreme(outcomes: pd.DataFrame, column: str, controller: str, *,
 
 def matched_change_direction(change: pd.DataFrame, expected: dict[str, int]) -> Finding:
     """The matched shift moves each controller's delay in the paper's direction (sign)."""
-    sel = change[change["population"] == MATCHED[1]].set_index("controller")["change"]
+    sel = change[change["population"] == MATCHED_PAIR[1]].set_index("controller")["change"]
     got = {c: float(sel.get(c, np.nan)) for c in expected}
     holds = all(np.sign(got[c]) == s for c, s in expected.items())
     return Finding("Matched deadline shift lowers delay under reactive and robot_orca and "
@@ -123,9 +124,9 @@ def available_findings(table1: pd.DataFrame, outcomes: pd.DataFrame,
     """:func:`paper_findings` on a study that may lack some inputs: the findings whose
     inputs exist, in the paper's order, and what was left out. ``pairs``: Table I has the
     all-pairs rows; ``matched``: its matched rows; ``delays``: every controller has a
-    mean delay; the controller findings need all three built-in controllers, the width
+    mean delay; the controller findings need the paper's three controllers, the width
     findings a width series."""
-    ctrl = set(BUILTIN_CONTROLLERS) <= set(outcomes.index)
+    ctrl = set(PAPER_CONTROLLERS) <= set(outcomes.index)
     controllers = "the controller findings (all three built-in controllers)"
     controller_delays = "the controller delay findings"
 

@@ -30,8 +30,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..populations.nulls import SIZED_SOURCE, parse_null, sized_name, swap_name
-from .reversals import MATCHED, population_pairs
+from ..populations.identity import ARMS, MATCHED_PAIR, SIZED_SOURCE, PopulationSpec
+from .reversals import population_pairs
 from .significance import Orderings, PairCounts, pair_counts
 from .verdicts import decide
 
@@ -43,9 +43,9 @@ def swap_replicates(populations: Sequence[str]) -> list[int]:
     """The swap permutations whose two arms are both among ``populations``, sorted."""
     arms: dict[int, set[str]] = {}
     for p in populations:
-        null = parse_null(p)
-        if null is not None and null.kind == "swap":
-            arms.setdefault(null.replicate, set()).add(null.arm)
+        spec = PopulationSpec.parse(p)
+        if spec.role == "swap_null":
+            arms.setdefault(spec.replicate, set()).add(spec.arm)
     return sorted(k for k, a in arms.items() if a == {"a", "b"})
 
 
@@ -53,13 +53,13 @@ def sized_replicates(populations: Sequence[str], observed: Sequence[str]) -> lis
     """The size-matched replicates that hold a subset for every one of ``observed``
     (``mixed`` stands for itself), sorted."""
     have = set(populations)
-    reps = {n.replicate for p in populations if (n := parse_null(p)) and n.kind == "sized"}
+    reps = {s.replicate for s in map(PopulationSpec.parse, populations) if s.role == "sized_null"}
     need = [p for p in observed if p != SIZED_SOURCE]
-    return sorted(k for k in reps if all(sized_name(p, k) in have for p in need))
+    return sorted(k for k in reps if all(PopulationSpec.sized(p, k).name in have for p in need))
 
 
 def swap_pairs(k: int) -> list[tuple[str, str]]:
-    return [(swap_name(k, "a"), swap_name(k, "b"))]
+    return [tuple(PopulationSpec.swap(k, arm).name for arm in ARMS)]  # type: ignore[list-item]
 
 
 def sized_pairs(observed_pairs: Sequence[tuple[str, str]], k: int, *,
@@ -69,9 +69,9 @@ def sized_pairs(observed_pairs: Sequence[tuple[str, str]], k: int, *,
     is swap permutation ``k`` instead: its arms hold the same personas in every slot, as the
     matched pair does, where two independent subsets would not (and would reverse more)."""
     def sub(p: str) -> str:
-        return p if p == SIZED_SOURCE else sized_name(p, k)
+        return p if p == SIZED_SOURCE else PopulationSpec.sized(p, k).name
 
-    return [swap_pairs(k)[0] if swap and {a, b} == set(MATCHED) else (sub(a), sub(b))
+    return [swap_pairs(k)[0] if swap and {a, b} == set(MATCHED_PAIR) else (sub(a), sub(b))
             for a, b in observed_pairs]
 
 
@@ -251,14 +251,14 @@ def headline_designs(populations: Sequence[str],
     member of mixed) gets one random member.
     """
     out: dict[str, tuple[list, list]] = {}
-    if set(MATCHED) <= set(populations):
-        out["matched"] = ([MATCHED], [swap_pairs(k) for k in swap_replicates(populations)])
+    if set(MATCHED_PAIR) <= set(populations):
+        out["matched"] = ([MATCHED_PAIR], [swap_pairs(k) for k in swap_replicates(populations)])
     obs = list(observed_populations)
-    if len(obs) >= 2 and not (len(obs) == 2 and set(obs) == set(MATCHED) and out):
+    if len(obs) >= 2 and not (len(obs) == 2 and set(obs) == set(MATCHED_PAIR) and out):
         pairs = population_pairs(obs)
         reps = sized_replicates(populations, obs)
         swaps = set(swap_replicates(populations))
-        swap = set(MATCHED) <= set(obs) and bool(swaps)
+        swap = set(MATCHED_PAIR) <= set(obs) and bool(swaps)
         if swap:
             reps = [k for k in reps if k in swaps]
         out["all_pairs"] = (pairs, [sized_pairs(pairs, k, swap=swap) for k in reps])

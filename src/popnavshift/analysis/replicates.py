@@ -23,6 +23,7 @@ import pandas as pd
 
 from .delay import cell_metrics, paired_delays
 from .evidence import test_comparisons
+from .ranked import names
 from .reversals import comparisons
 from .significance import LEVEL
 
@@ -45,7 +46,7 @@ def replicate_curve(runs: pd.DataFrame, pedestrians: pd.DataFrame,
                     designs: dict[str, tuple[list, list]], observed: Sequence[str], *,
                     study_seed: int, seed: int = 0, n_boot: int = CURVE_BOOT,
                     level: float = LEVEL,
-                    metrics: Sequence[str] = ("mean_delay", "worst_decile", "cvar90", "robot_time"),
+                    metrics: Sequence[str] = (*names("burden"), *names("robot")),
                     full: pd.DataFrame | None = None) -> pd.DataFrame:
     """Headline rows (:func:`.evidence.test_comparisons`) on the first k seed sets, for
     k = 1 … S; columns of the headline plus ``seed_sets`` and ``variants_per_cell``.
@@ -72,7 +73,7 @@ def replicate_curve(runs: pd.DataFrame, pedestrians: pd.DataFrame,
 
 def replicability(runs: pd.DataFrame, pedestrians: pd.DataFrame,
                   designs: dict[str, tuple[list, list]], *, study_seed: int,
-                  metrics: Sequence[str] = ("robot_time", "mean_delay", "worst_decile")
+                  metrics: Sequence[str] = names(paper=True)
                   ) -> pd.DataFrame:
     """Per (comparison, kind ∈ {observed, null design}, metric): the marginal raw reversal rate
     of one seed set and P(the reversal recurs in the same direction in another seed

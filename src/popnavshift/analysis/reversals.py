@@ -22,14 +22,11 @@ import pandas as pd
 
 from ..errors import InputError, UnknownNameError
 from .delay import UNIT
+from .ranked import TOLERANCES, names
 
-#: Tie tolerance per ranked metric [s] (paper §IV-B; CVaR-90 is a delay like the others).
-TOLERANCES: dict[str, float] = {"robot_time": 0.05, "mean_delay": 0.02, "worst_decile": 0.02,
-                                "cvar90": 0.02}
-#: The paper's three ranked metrics (Table I).
-METRICS: tuple[str, ...] = ("robot_time", "mean_delay", "worst_decile")
+#: The paper's three ranked metrics (Table I); each one's tie tolerance is declared with it.
+METRICS: tuple[str, ...] = names(paper=True)
 TIE_EPS = 1e-9  # [s] guard against binary rounding at exactly the tolerance
-MATCHED: tuple[str, str] = ("matched_base", "matched_deadline")
 
 
 def population_pairs(populations: Sequence[str]) -> list[tuple[str, str]]:

@@ -15,11 +15,14 @@ from itertools import combinations
 import numpy as np
 import pandas as pd
 
+from ..populations.identity import MATCHED_PAIR
 from .bootstrap import rate_intervals
-from .reversals import MATCHED, TOLERANCES, comparisons, population_pairs, tie_sign
+from .ranked import TOLERANCES, names
+from .reversals import comparisons, population_pairs, tie_sign
 
-BURDEN = ("mean_delay", "worst_decile")
-ALL_METRICS = ("robot_time", "mean_delay", "worst_decile")
+#: the paper's ranked metrics, and those of them that are pedestrian burden
+ALL_METRICS = names(paper=True)
+BURDEN = names("burden", paper=True)
 
 
 def rates_by_set(
@@ -130,7 +133,7 @@ def matched_rates(
     *,
     rng: np.random.Generator,
     n_boot: int = 1000,
-    matched: tuple[str, str] = MATCHED,
+    matched: tuple[str, str] = MATCHED_PAIR,
 ) -> pd.DataFrame:
     """The matched intervention's reversal rates per profile set (e.g. per respondent)."""
     pair = cells[cells["population"].isin(matched)]

@@ -41,8 +41,8 @@ import pandas as pd
 from scipy import optimize, stats
 
 from .delay import CELL_KEY, UNIT
-from .resample import Design
-from .reversals import TOLERANCES, tie_sign
+from .ranked import TOLERANCES, Design
+from .reversals import tie_sign
 
 LEVEL = 0.90  # coverage of an ordering's interval
 ALPHA = 0.05  # family-wise / false-discovery level of the crossover tests

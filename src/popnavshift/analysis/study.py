@@ -18,12 +18,13 @@ import numpy as np
 import pandas as pd
 
 from ..engine.folder import is_half, split_halves
-from ..populations.build import HALF_SUFFIXES
+from ..populations.identity import ARMS, MATCHED_PAIR, PopulationSpec
 from ..tables import NO_ROBOT
 from .delay import cell_metrics, paired_delays
 from .findings import WIDTH_SCENES, Finding, available_findings
 from .paper_reference import REVERSAL_RATE
-from .reversals import MATCHED, comparisons, population_pairs, ranking_tau
+from .ranked import names
+from .reversals import comparisons, population_pairs, ranking_tau
 from .summary import (
     controller_outcomes,
     delay_change,
@@ -35,6 +36,8 @@ from .summary import (
     sensitivity_by_width,
 )
 
+#: the metrics of the change in delay (paper Fig. 2): the paper's burden metrics
+CHANGE_METRICS: tuple[str, ...] = names("burden", paper=True)
 
 @dataclass
 class Analysis:
@@ -42,7 +45,8 @@ class Analysis:
 
     ``populations``: those analysed (split halves aside); ``tables``: name → table
     (each written as ``tables/<name>.csv``);
-    ``missing``: section id → why it could not be computed; ``findings``: the
+    ``missing``: table name → why it could not be computed (``matched``: the matched rows
+    of ``reversals``; ``delays``: every delay table); ``findings``: the
     paper's qualitative claims checked on our numbers; ``cells``, ``comps`` and
     ``paired`` are kept for choosing the illustrative replays.
     """
@@ -60,7 +64,7 @@ class Analysis:
 def _sanity(a: Analysis, peds: pd.DataFrame) -> None:
     base = peds[peds["controller"] == NO_ROBOT]
     if base.empty:
-        a.missing["checks"] = "the study ran no no-robot baselines"
+        a.missing["no_robot_checks"] = "the study ran no no-robot baselines"
     else:
         a.tables["no_robot_checks"] = no_robot_checks(base)
 
@@ -71,15 +75,15 @@ def _rankings(a: Analysis, cells: pd.DataFrame, rng_seed: int, n_boot: int) -> N
     if len(pops) < 2 or len(ctrl) < 2:
         why = (f"rankings need at least 2 populations and 2 controllers; this study has "
                f"{len(pops)} population(s) and {len(ctrl)} controller(s)")
-        for s in ("table1", "matched", "tau"):
+        for s in ("reversals", "matched", "kendall_tau"):
             a.missing[s] = why
         return
     t1 = reversal_table(cells, rng=np.random.default_rng(rng_seed), n_boot=n_boot)
     a.tables["reversals"] = t1.assign(paper_rate=[
         REVERSAL_RATE.get(c, {}).get(s, {}).get(m, np.nan)
         for c, s, m in t1[["comparison", "cells", "metric"]].itertuples(index=False)])
-    if not set(MATCHED) <= set(pops):
-        a.missing["matched"] = f"the study lacks the matched pair ({', '.join(MATCHED)})"
+    if not set(MATCHED_PAIR) <= set(pops):
+        a.missing["matched"] = f"the study lacks the matched pair ({', '.join(MATCHED_PAIR)})"
     a.comps = comparisons(cells, population_pairs(pops))
     tau = ranking_tau(a.comps).groupby(["metric", "pop_a", "pop_b"])
     a.tables["kendall_tau"] = tau.agg(tau=("tau", "mean"), n_cells=("tau", "count")).reset_index()
@@ -95,22 +99,23 @@ def _outcomes(a: Analysis, runs: pd.DataFrame, cells: pd.DataFrame) -> None:
 
 def _delay_change(a: Analysis, cells: pd.DataFrame) -> None:
     pops = set(cells["population"])
-    if not (set(MATCHED) <= pops or ("homogeneous" in pops and pops - {"homogeneous", *MATCHED})):
-        a.missing["change"] = ("the change in delay needs the matched pair, or the homogeneous "
-                               "reference and a population outside the matched pair")
+    if not (set(MATCHED_PAIR) <= pops
+            or ("homogeneous" in pops and pops - {"homogeneous", *MATCHED_PAIR})):
+        a.missing["delay_change"] = ("the change in delay needs the matched pair, or the "
+                                     "homogeneous reference and a population outside the "
+                                     "matched pair")
         return
-    frames = [delay_change(cells, metric=m).assign(metric=m)
-              for m in ("mean_delay", "worst_decile")]
+    frames = [delay_change(cells, metric=m).assign(metric=m) for m in CHANGE_METRICS]
     change = pd.concat(frames, ignore_index=True)
     if change.empty:
-        a.missing["change"] = "no cell has a paired delay under both populations of a row"
+        a.missing["delay_change"] = "no cell has a paired delay under both populations of a row"
         return
     a.tables["delay_change"] = change
 
 
 def _sensitivity(a: Analysis, cells: pd.DataFrame) -> None:
     if cells["population"].nunique() < 2:
-        a.missing["sensitivity"] = "population sensitivity needs at least 2 populations"
+        a.missing["sensitivity_by_width"] = "population sensitivity needs at least 2 populations"
         return
     sens = population_sensitivity(cells)
     a.tables["population_sensitivity"] = sens
@@ -124,7 +129,7 @@ def _sensitivity(a: Analysis, cells: pd.DataFrame) -> None:
                                        controller=f.get("controller", "pooled")))
     by_width = pd.concat(frames, ignore_index=True)
     if by_width.empty:
-        a.missing["sensitivity"] = "no sidewalk or bottleneck cell has a sensitivity value"
+        a.missing["sensitivity_by_width"] = "no sidewalk or bottleneck cell has a sensitivity value"
         return
     a.tables["sensitivity_by_width"] = by_width[
         ["scenes", "cells", "controller", "width", "sensitivity", "n"]]
@@ -134,9 +139,9 @@ def _noise_floor(a: Analysis, runs: pd.DataFrame, peds: pd.DataFrame) -> None:
     halves = split_halves(runs["population"].unique())
     robot = runs.loc[is_half(runs["population"]) & (runs["controller"] != NO_ROBOT), "controller"]
     if not halves or robot.nunique() < 2:
-        a_, b_ = HALF_SUFFIXES
-        a.missing["noise"] = (f"the noise floor was not run: the study has no split-half "
-                              f"populations (named <population>{a_} and <population>{b_}) "
+        a_, b_ = (PopulationSpec.half("<population>", arm).name for arm in ARMS)
+        a.missing["noise_floor"] = (f"the noise floor was not run: the study has no split-half "
+                              f"populations (named {a_} and {b_}) "
                               "with runs of 2 or more controllers")
         return
     frames = [noise_floor(runs, peds, (ha, hb), completed_only=done)
@@ -161,8 +166,8 @@ def analyse(runs: pd.DataFrame, peds: pd.DataFrame, *, selection: str = "",
     _sanity(a, peds)
     if runs[runs["controller"] != NO_ROBOT].empty:
         why = "the study has no robot runs"
-        for s in ("table1", "matched", "tau", "table2", "tradeoff", "change", "sensitivity",
-                  "findings"):
+        for s in ("reversals", "matched", "kendall_tau", "controller_outcomes", "tradeoff",
+                  "delay_change", "sensitivity_by_width", "findings"):
             a.missing[s] = why
         return a
     a.paired = paired_delays(peds)

@@ -21,6 +21,8 @@ on the main grid — and computes with :mod:`popnavshift.analysis` (pure functio
 * ``evidence_findings``: the paper's findings under the significance rule
   (:mod:`popnavshift.analysis.surviving`), and ``evidence_burden``: "burden reverses
   more than robot time" against the nulls.
+
+``with_null_rates`` then gives Table I (``reversals``) the null rate of each comparison.
 """
 
 from __future__ import annotations
@@ -29,13 +31,13 @@ import numpy as np
 import pandas as pd
 
 from ..engine.folder import StudyFolder, main_part
-from ..populations.build import HALF_SUFFIXES
-from ..populations.nulls import parse_null
+from ..populations.identity import PopulationSpec
 from ..tables import NO_ROBOT
 from .calibrate import calibration_table
 from .evidence import complete_design, test_comparisons
 from .nulls import burden_beyond_time, design_populations, family_verdicts, headline_designs
 from .power import Costs, design_advice
+from .ranked import names
 from .replicates import replicability, replicate_curve, seed_sets
 from .significance import LEVEL
 from .surviving import surviving_findings
@@ -45,7 +47,7 @@ PREFIX = "evidence_"
 
 
 def _is_observed(name: str) -> bool:
-    return parse_null(name) is None and not name.endswith(HALF_SUFFIXES)
+    return PopulationSpec.parse(name).role == "observed"
 
 
 def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000,
@@ -64,7 +66,7 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
     designs = headline_designs(present, observed)
     if not designs:
         return {}, {"evidence": "the study has neither the matched pair nor two populations"}
-    seed = int(study.manifest.get("seeds", {}).get("study", 0))
+    seed = 0 if study.seed is None else int(study.seed)
     frames: dict[str, list[pd.DataFrame]] = {}
     missing: dict[str, str] = {}
     boot_excess: dict[tuple[str, str, str], np.ndarray] = {}
@@ -120,7 +122,7 @@ def _decided(tables: dict[str, pd.DataFrame], boot_excess: dict, costs: dict[str
     nulls = tables[PREFIX + "null_rates"]
     head = family_verdicts(tables[PREFIX + "headline"], nulls)
     comps = list(dict.fromkeys(head["comparison"]))
-    burden_metrics = ("mean_delay", "cvar90")
+    burden_metrics = names("burden", summary=True)
     m = max(sum(c in costs for c in comps) * len(burden_metrics), 1)
     burden = [burden_beyond_time(head[head["comparison"] == c], nulls, boot_excess, burden=b,
                                  alpha=ALPHA / m)
@@ -172,3 +174,22 @@ def _replicates(runs: pd.DataFrame, peds: pd.DataFrame, design: dict, observed: 
                             level=level, full=full)
     return {"curve": curve.assign(comparison=label),
             "replicability": replicability(runs, peds, design, study_seed=seed)}
+
+
+def with_null_rates(reversals: pd.DataFrame, tables: dict[str, pd.DataFrame]) -> pd.DataFrame:
+    """Table I with ``null_rate``: the raw rate of each comparison's null at Table I's design
+    (one seed set, all cells) — the matched pair's swap null on the study seed's episodes,
+    the pairs' size-matched null on the main grid; NaN where the study ran no null."""
+    null = {}
+    curve, head = tables.get("evidence_curve"), tables.get("evidence_headline")
+    if curve is not None and not curve.empty:
+        c = curve[(curve["seed_sets"] == 1) & (curve["rule"] == "raw")
+                  & (curve["comparison"] == "matched")]
+        null.update({("matched", m): v for m, v in zip(c["metric"], c["null_mean"], strict=True)})
+    if head is not None and not head.empty:
+        h = head[(head["rule"] == "raw") & (head["seed_sets"] == 1)]
+        for r in h.itertuples():
+            null.setdefault((r.comparison, r.metric), r.null_mean)
+    key = zip(reversals["comparison"], reversals["metric"], strict=True)
+    rates = [null.get(k, np.nan) for k in key]
+    return reversals.assign(null_rate=np.where(reversals["cells"] == "all", rates, np.nan))

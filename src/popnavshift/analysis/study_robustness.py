@@ -1,7 +1,8 @@
 """The robustness parts of a study (paper §IV-C, §V-D, §V-E) as tables.
 
-Each part named in the study's manifest (``mapping``, ``structure``, ``backend``,
-``respondent``) is selected from the runs table by its own episodes, populations,
+Each part whose role (:meth:`popnavshift.engine.study.Study.role`) is one of
+:data:`ROLE_TABLES` (``mapping``, ``structure``, ``backend``, ``respondent``), whatever
+its name, is selected from the runs table by its own episodes, populations,
 backends and profile sets (:func:`popnavshift.engine.folder.part_runs`) and analysed with
 :mod:`popnavshift.analysis.robustness`; parts repeated on extra seed sets give the
 spread of their rates. Every table of profile sets carries the sets' columns of the
@@ -10,6 +11,8 @@ runs table (``profile_base``, ``perturbation``, ``perturbation_arg``) beside the
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
@@ -20,7 +23,6 @@ from ..tables import PROFILE_SET_COLUMNS
 from .delay import cell_metrics, paired_delays
 from .robustness import agreement_with, backend_rates, matched_rates, rates_by_set
 
-PARTS = ("mapping", "structure", "backend", "respondent")
 #: the profile-set columns a table of sets carries beside ``mapping`` (``profile_set``
 #: restates them)
 SET_COLUMNS: tuple[str, ...] = tuple(c for c in PROFILE_SET_COLUMNS if c != "profile_set")
@@ -46,31 +48,51 @@ def with_sets(table: pd.DataFrame, sets: pd.DataFrame) -> pd.DataFrame:
     return table.merge(sets, on="mapping", how="left", validate="many_to_one")
 
 
+Tables = dict[str, pd.DataFrame]
+
+
+def _mapping(cells: pd.DataFrame, sets: pd.DataFrame, rng: np.random.Generator,
+             n_boot: int) -> Tables:
+    return {"robust_mapping": with_sets(rates_by_set(cells, rng=rng, n_boot=n_boot), sets),
+            "robust_agreement": with_sets(agreement_with(cells, "A"), sets)}
+
+
+def _structure(cells: pd.DataFrame, sets: pd.DataFrame, rng: np.random.Generator,
+               n_boot: int) -> Tables:
+    return {"robust_structure": with_sets(rates_by_set(cells, rng=rng, n_boot=n_boot), sets)}
+
+
+def _backend(cells: pd.DataFrame, sets: pd.DataFrame, rng: np.random.Generator,
+             n_boot: int) -> Tables:
+    return {"robust_backend": backend_rates(cells, rng=rng, n_boot=n_boot)}
+
+
+def _respondent(cells: pd.DataFrame, sets: pd.DataFrame, rng: np.random.Generator,
+                n_boot: int) -> Tables:
+    return {"robust_respondent": with_sets(matched_rates(cells, rng=rng, n_boot=n_boot), sets)}
+
+
+#: the tables of each robustness role, from the part's cells and profile sets; the
+#: report's section of a role is missing (keyed by the role) when no part has it
+ROLE_TABLES: dict[str, Callable[[pd.DataFrame, pd.DataFrame, np.random.Generator, int],
+                                Tables]] = {
+    "mapping": _mapping, "structure": _structure, "backend": _backend,
+    "respondent": _respondent}
+
+
 def robustness_tables(
     study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
 ) -> tuple[dict[str, pd.DataFrame], dict[str, str]]:
-    """Tables ``robust_<part>`` (and ``robust_agreement``) and why parts are missing."""
+    """Tables ``robust_<role>`` (and ``robust_agreement``) and why roles are missing."""
     tables: dict[str, pd.DataFrame] = {}
     missing: dict[str, str] = {}
-    for name in PARTS:
-        got = part_cells(study, name)
+    for role, compute in ROLE_TABLES.items():
+        found = None if study.study is None else study.study.part_with(role)
+        got = None if found is None else part_cells(study, found[0])
         if got is None:
-            missing[name] = f"the study has no {name!r} part (or it has no runs)"
+            missing[role] = f"the study has no part with role {role!r} (or it has no runs)"
             continue
-        cells, sets = got
-        rng = np.random.default_rng(rng_seed)
-        if name == "mapping":
-            tables["robust_mapping"] = with_sets(rates_by_set(cells, rng=rng, n_boot=n_boot),
-                                                 sets)
-            tables["robust_agreement"] = with_sets(agreement_with(cells, "A"), sets)
-        elif name == "structure":
-            tables["robust_structure"] = with_sets(
-                rates_by_set(cells, rng=rng, n_boot=n_boot), sets)
-        elif name == "backend":
-            tables["robust_backend"] = backend_rates(cells, rng=rng, n_boot=n_boot)
-        else:
-            tables["robust_respondent"] = with_sets(
-                matched_rates(cells, rng=rng, n_boot=n_boot), sets)
+        tables.update(compute(*got, np.random.default_rng(rng_seed), n_boot))
     spread = seed_spread(study, rng_seed=rng_seed, n_boot=n_boot)
     if spread is None:
         missing["seeds"] = "no study part was repeated with extra episode seed sets (`seeds`)"
@@ -86,13 +108,15 @@ def seed_spread(
     with extra ``seeds`` (null designs aside: the answer section tests them); None when
     no part has any. Columns: part, seed_set, metric, backend, mapping, reversals,
     comparisons, rate, ci_low, ci_high, then :data:`SET_COLUMNS`."""
-    cfg = study.manifest.get("study_config") or {}
+    spec = study.study
+    if spec is None:
+        return None
     frames = []
-    for name, part in (cfg.get("parts") or {}).items():
-        seeds = [s for s in part.get("seeds", []) if s != cfg.get("seed", 0)]
-        if not seeds or part.get("null_design"):
+    for name, part in spec.parts.items():
+        seeds = [s for s in part.seeds if s != spec.seed]
+        if not seeds or part.null_design is not None:
             continue
-        for seed in [cfg.get("seed", 0), *seeds]:
+        for seed in [spec.seed, *seeds]:
             got = part_cells(study, name, seed)
             if got is None:
                 continue

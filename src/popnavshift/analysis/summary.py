@@ -17,13 +17,14 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-from ..tables import BUILTIN_CONTROLLERS, NO_ROBOT
+from ..paper import PAPER_CONTROLLERS
+from ..populations.identity import MATCHED_PAIR
+from ..tables import NO_ROBOT
 from .bootstrap import LEVEL, N_BOOT, rate_intervals
 from .delay import UNIT, cell_metrics, paired_delays
+from .ranked import TOLERANCES
 from .reversals import (
-    MATCHED,
     METRICS,
-    TOLERANCES,
     comparisons,
     completed_units,
     population_pairs,
@@ -36,9 +37,9 @@ MAX_STUCK_SHARE = 0.05  # no-robot runs: more pedestrians than this never arrivi
 
 
 def controller_order(names: Sequence[str]) -> list[str]:
-    """The built-in controllers in the paper's order, then any plug-in, sorted."""
+    """The paper's controllers in its order, then any other, sorted."""
     given = set(names)
-    return [c for c in BUILTIN_CONTROLLERS if c in given] + sorted(given - set(BUILTIN_CONTROLLERS))
+    return [c for c in PAPER_CONTROLLERS if c in given] + sorted(given - set(PAPER_CONTROLLERS))
 
 
 # --- Table I -------------------------------------------------------------------------------
@@ -50,7 +51,7 @@ def reversal_table(
     rng: np.random.Generator,
     n_boot: int = N_BOOT,
     level: float = LEVEL,
-    matched: tuple[str, str] = MATCHED,
+    matched: tuple[str, str] = MATCHED_PAIR,
     tolerances: dict[str, float] = TOLERANCES,
 ) -> pd.DataFrame:
     """Reversal rates with cluster-bootstrap intervals, as Table I and §V-A.
@@ -165,7 +166,7 @@ def delay_change(
     *,
     metric: str = "mean_delay",
     reference: str = "homogeneous",
-    matched: tuple[str, str] = MATCHED,
+    matched: tuple[str, str] = MATCHED_PAIR,
 ) -> pd.DataFrame:
     """Shifted minus reference ``metric`` per controller and population [s] (Fig. 2).
 

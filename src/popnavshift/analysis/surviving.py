@@ -21,13 +21,14 @@ from functools import partial
 import numpy as np
 import pandas as pd
 
-from ..tables import BUILTIN_CONTROLLERS, NO_ROBOT
+from ..paper import PAPER_CONTROLLERS
+from ..populations.identity import MATCHED_PAIR
+from ..tables import NO_ROBOT
 from .delay import CELL_KEY, cell_metrics, episode_cells, paired_delays
 from .findings import TAIL_BAND, WIDTH_SCENES
 from .nulls import centred_interval
 from .paper_reference import MATCHED_CHANGE_SIGN
 from .resample import build_design, episode_weights, resampled_metrics
-from .reversals import MATCHED
 from .significance import LEVEL
 from .verdicts import ABOVE, BELOW, SMALL
 
@@ -69,7 +70,7 @@ def _matched_change(cells: pd.DataFrame, values: np.ndarray, controller: str) ->
     sub = cells[cells["controller"] == controller]
     pos = sub.assign(i=sub.index).pivot(index=["backend", "mapping", "cell"],
                                         columns="population", values="i")
-    pos = pos.reindex(columns=list(MATCHED)).dropna().to_numpy(np.int64)
+    pos = pos.reindex(columns=list(MATCHED_PAIR)).dropna().to_numpy(np.int64)
     with np.errstate(all="ignore"):
         return np.nanmean(values[..., pos[:, 1]] - values[..., pos[:, 0]], axis=-1)
 
@@ -112,7 +113,7 @@ def surviving_findings(runs: pd.DataFrame, pedestrians: pd.DataFrame, *,
             return means[ctrl] - rest if highest else rest - means[ctrl]
         return f
 
-    if set(BUILTIN_CONTROLLERS) <= ctrls:
+    if set(PAPER_CONTROLLERS) <= ctrls:
         checks += [
             ("Reactive has the highest success rate", "success share gap to the next [pp]",
              lambda v: 100 * extreme("success_share", "reactive", True)(v), (0, np.inf),
@@ -132,7 +133,7 @@ def surviving_findings(runs: pd.DataFrame, pedestrians: pd.DataFrame, *,
              "extreme:early_yield:mean_delay"),
         ]
     for ctrl, sign in MATCHED_CHANGE_SIGN.items():
-        if ctrl in ctrls and set(MATCHED) <= set(cells["population"]):
+        if ctrl in ctrls and set(MATCHED_PAIR) <= set(cells["population"]):
             word = "lowers" if sign < 0 else "raises"
             checks.append((f"The matched deadline shift {word} {ctrl}'s mean delay",
                            "deadline − base mean delay [s]",

@@ -1,9 +1,11 @@
 """A study folder on disk: its tables and manifest, and the runs of each study part.
 
-``read_study_folder`` reads what ``popnavshift run`` wrote; ``main_grid`` selects the
-study's main part (the paper's design), ``main_part`` names its populations, backends
-and mappings, and ``part_runs`` the runs of any part on one of its seed sets. Pure
-selection: the analysis of these runs lives in :mod:`popnavshift.analysis`.
+``read_study_folder`` reads what ``popnavshift run`` wrote, the stored study
+configuration parsed once into its :class:`~popnavshift.engine.study.Study`;
+``main_grid`` selects the study's main part (the paper's design, the part whose role is
+``main``), ``main_part`` names its populations, backends and mappings, and ``part_runs``
+the runs of any part on one of its seed sets. Pure selection: the analysis of these runs
+lives in :mod:`popnavshift.analysis`, which finds parts by role, never by name.
 """
 
 from __future__ import annotations
@@ -20,10 +22,11 @@ import pyarrow.parquet as pq
 
 from ..episodes.specs import seed_set_id
 from ..errors import InputError
-from ..populations.build import HALF_SUFFIXES, population_order
+from ..populations.build import population_order
+from ..populations.identity import PopulationSpec
 from ..tables import NO_ROBOT
 from .plan import select_episodes
-from .study import study_from_dict
+from .study import Study, study_from_dict
 
 
 @dataclass(frozen=True)
@@ -35,6 +38,19 @@ class StudyFolder:
     episodes: pd.DataFrame | None
     manifest: dict[str, Any]
     metadata: dict[str, dict[str, Any]]  # personas.json, responses.json
+    #: the manifest's study configuration, parsed (None when it names no part)
+    study: Study | None = None
+
+    @property
+    def seed(self) -> int | None:
+        """The study seed, None when the manifest does not say."""
+        return self.study.seed if self.study is not None else self.manifest.get(
+            "seeds", {}).get("study")
+
+
+def _study(manifest: dict[str, Any]) -> Study | None:
+    cfg = manifest.get("study_config")
+    return study_from_dict(cfg, "manifest study_config") if cfg and cfg.get("parts") else None
 
 
 def _read_json(path: Path) -> dict[str, Any]:
@@ -54,6 +70,7 @@ def read_study_folder(folder: Path) -> StudyFolder:
     (:func:`stored_pedestrians` reads one run's full rows); raises :class:`InputError`
     without runs or pedestrians."""
     folder = Path(folder)
+    manifest = _read_json(folder / "manifest.json")
     for name in ("runs.parquet", "pedestrians.parquet"):
         if not (folder / name).exists():
             raise InputError(f"study folder {folder}: {name} not found",
@@ -69,8 +86,9 @@ def read_study_folder(folder: Path) -> StudyFolder:
                                      list(ANALYSIS_PEDESTRIAN_COLUMNS)),
         populations=optional("populations.parquet"),
         episodes=optional("episodes.parquet"),
-        manifest=_read_json(folder / "manifest.json"),
+        manifest=manifest,
         metadata={n: _read_json(folder / f"{n}.json") for n in ("personas", "responses")},
+        study=_study(manifest),
     )
 
 
@@ -120,36 +138,34 @@ def _isin(df: pd.DataFrame, column: str, values) -> pd.Series:
 
 def split_halves(populations) -> list[tuple[str, str, str]]:
     """(population, half a, half b) for every pair of split-half names among ``populations``."""
-    pops = set(populations)
-    a, b = HALF_SUFFIXES
-    return sorted((p[: -len(a)], p, p[: -len(a)] + b) for p in pops
-                  if p.endswith(a) and p[: -len(a)] + b in pops)
+    specs = {PopulationSpec.parse(str(p)) for p in populations}
+    other = {s: PopulationSpec.half(s.base, "b") for s in specs if s.role == "half"}
+    return sorted((s.base, s.name, b.name) for s, b in other.items()
+                  if s.arm == "a" and b in specs)
 
 
 def is_half(population: pd.Series) -> pd.Series:
-    return population.str.endswith(HALF_SUFFIXES[0]) | population.str.endswith(HALF_SUFFIXES[1])
+    """Whether each population of ``population`` is a split half."""
+    halves = [p for p in population.unique() if PopulationSpec.parse(str(p)).role == "half"]
+    return population.isin(halves)
 
 
 def main_grid(study: StudyFolder) -> tuple[pd.DataFrame, pd.DataFrame, str]:
-    """Runs and pedestrians of the study's ``main`` part (else its first part), and a description.
+    """Runs and pedestrians of the study's main part (:meth:`Study.role`), and a description.
 
-    The part is read from the manifest's study configuration: its episodes,
+    The part is read from the study configuration: its episodes,
     populations, controllers (plus the no-robot baseline), backends and mapping.
     Split-half populations (for the noise floor) are kept on the same episodes, so the
     floor is at Table I's design (their other seed sets feed the seed-spread section).
     Without a configuration every run is kept.
     """
     runs, peds = study.runs, study.pedestrians
-    cfg = study.manifest.get("study_config")
-    if not cfg or not cfg.get("parts") or study.episodes is None:
+    main = None if study.study is None else study.study.part_with("main")
+    if main is None or study.episodes is None:
         return runs, peds, "every run in the folder (the manifest names no study part)"
-    spec = study_from_dict(cfg, "manifest study_config")
-    name = "main" if "main" in spec.parts else next(iter(spec.parts))
-    part = spec.parts[name]
+    name, part = main
     ids = {e.id for e in select_episodes(part.episodes, study.episodes.itertuples(index=False))}
-
-    # a part's mapping is one name or (newer studies) a tuple of them
-    mappings = (part.mapping,) if isinstance(part.mapping, str) else tuple(part.mapping)
+    mappings = part.mappings
 
     def keep(df: pd.DataFrame) -> pd.DataFrame:
         grid = (_isin(df, "controller", (NO_ROBOT, *part.controllers))
@@ -166,18 +182,12 @@ def main_grid(study: StudyFolder) -> tuple[pd.DataFrame, pd.DataFrame, str]:
     return runs, peds, text
 
 
-def study_seed(manifest: dict[str, Any]) -> int | None:
-    seed = manifest.get("seeds", {}).get("study", manifest.get("study_config", {}).get("seed"))
-    return None if seed is None else int(seed)
-
-
 def main_part(study: StudyFolder) -> tuple[list[str], list[str], list[str]] | None:
-    """(populations, backends, mappings) of the study's main part, from the manifest."""
-    cfg = study.manifest.get("study_config")
-    if not cfg or not cfg.get("parts"):
+    """(populations, backends, mappings) of the study's main part."""
+    main = None if study.study is None else study.study.part_with("main")
+    if main is None:
         return None
-    spec = study_from_dict(cfg, "manifest study_config")
-    part = spec.parts["main"] if "main" in spec.parts else next(iter(spec.parts.values()))
+    part = main[1]
     return list(part.populations), list(part.backends), list(part.mappings)
 
 
@@ -185,17 +195,17 @@ def part_runs(study: StudyFolder, name: str, seed: int | None = None
               ) -> tuple[pd.DataFrame, pd.DataFrame] | None:
     """Runs and pedestrians of the study part ``name`` (None when the study has no such
     part, or it has no runs); ``seed`` selects one of the part's extra seed sets
-    (default: the study's own). The mapping and structure parts keep Mapping A beside
-    their profile sets, the respondent part the first respondent's pair."""
-    cfg = study.manifest.get("study_config") or {}
-    if name not in (cfg.get("parts") or {}) or study.episodes is None:
+    (default: the study's own). The parts whose role is mapping or structure keep
+    Mapping A beside their profile sets, the respondent part the first respondent's pair."""
+    spec = study.study
+    if spec is None or name not in spec.parts or study.episodes is None:
         return None
-    part = study_from_dict(cfg, "manifest study_config").parts[name]
+    part = spec.parts[name]
     ids = {e.id for e in select_episodes(part.episodes, study.episodes.itertuples(index=False))}
-    if seed is not None and seed != cfg.get("seed", 0):
+    if seed is not None and seed != spec.seed:
         ids = {seed_set_id(i, seed) for i in ids}
     mappings = set(part.mappings) | (
-        {"A"} if name in ("mapping", "structure", "respondent") else set()
+        {"A"} if spec.role(name) in ("mapping", "structure", "respondent") else set()
     )
 
     def keep(df: pd.DataFrame) -> pd.DataFrame:

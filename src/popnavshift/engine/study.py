@@ -22,17 +22,19 @@ from pydantic import (
     Field,
     ValidationError,
     field_validator,
+    model_serializer,
     model_validator,
 )
 
 from ..errors import ConfigError, UnknownNameError
 from ..hashing import digest
+from ..paper import PAPER_CONTROLLERS, PAPER_POPULATIONS
 from ..populations.build import POPULATIONS, SPLIT_HALVES, is_known
+from ..populations.identity import MATCHED_PAIR
 from ..populations.nulls import null_populations
-from ..sim.controllers.builtin import BUILTIN_CONTROLLERS
+from ..populations.perturb import ProfileSet
 from ..sim.controllers.registry import controller_id
 
-MATCHED_PAIR: tuple[str, str] = ("matched_base", "matched_deadline")
 SCENES = ("sidewalk", "head_on", "crossing", "bottleneck", "obstruction")
 SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
 
@@ -95,12 +97,37 @@ class NullDesign(Strict):
     replicates: int = Field(19, ge=1, le=999)
 
 
+#: What the analysis does with a study part: ``main`` is the paper's design (Table I, the
+#: headline), ``mapping``, ``structure``, ``backend`` and ``respondent`` each give one
+#: robustness table, ``other`` nothing of its own (null replicates, split halves and extra
+#: seed sets are found by their populations and episodes wherever they run).
+PartRole = Literal["main", "mapping", "structure", "backend", "respondent", "other"]
+PART_ROLES: tuple[str, ...] = PartRole.__args__  # type: ignore[attr-defined]
+
+
+def role_from_content(part: Part) -> str:
+    """The role of a part that declares none and is not named after one: a null design
+    or a single profile set and backend is ``other``; two backends, ``backend``; a second
+    respondent's set, ``respondent``; a perturbed set, ``structure``; two mappings,
+    ``mapping``."""
+    if part.null_design is not None:
+        return "other"
+    sets = [ProfileSet.parse(m) for m in part.mappings]
+    if len(part.backends) > 1:
+        return "backend"
+    if any(s.perturbation == "second_respondent" for s in sets):
+        return "respondent"
+    if any(s.perturbation != "none" for s in sets):
+        return "structure"
+    return "mapping" if len(sets) > 1 else "other"
+
+
 class Part(Strict):
-    populations: tuple[str, ...] = POPULATIONS
+    populations: tuple[str, ...] = PAPER_POPULATIONS
     episodes: EpisodeSelection = EpisodeSelection()
     #: controller ids: a registered name, an entry point or ``package.module:Class``;
     #: in YAML also ``{name: HRVO, params: {...}}``, stored as ``HRVO{"...":...}``
-    controllers: tuple[str, ...] = BUILTIN_CONTROLLERS
+    controllers: tuple[str, ...] = PAPER_CONTROLLERS
     backends: tuple[str, ...] = ("orca",)
     #: profile set(s): a mapping A–D, or a robustness label such as A~shuffle
     mapping: str | tuple[str, ...] = "A"
@@ -111,6 +138,18 @@ class Part(Strict):
     #: run a null design instead of ``populations`` (which it stands in for): the
     #: populations run are :attr:`planned_populations`
     null_design: NullDesign | None = None
+    #: what the analysis does with it (:data:`PartRole`); default: its name when that is a
+    #: role, else its content (:func:`role_from_content`) — :meth:`Study.role`
+    role: PartRole | None = None
+
+    @model_serializer(mode="wrap")
+    def _without_unset_role(self, handler: Any) -> dict[str, Any]:
+        """An undeclared role stays out of the stored configuration, so a study's hash
+        (and every stamp after it) is the same as before parts had roles."""
+        data = handler(self)
+        if self.role is None:
+            data.pop("role", None)
+        return data
 
     @property
     def mappings(self) -> tuple[str, ...]:
@@ -187,6 +226,33 @@ class Study(Strict):
     respondent2: RespondentSpec | None = None
     parts: dict[str, Part]
     output: str | None = None
+
+    def role(self, name: str) -> str:
+        """The analysis role of part ``name``: declared, else its name when that is a role
+        (as in the built-in studies), else its content. Without a ``main`` part the first
+        part is the main one."""
+        part = self.parts[name]
+        if part.role is not None:
+            return part.role
+        if name in PART_ROLES:
+            return name
+        roles = [p.role or (n if n in PART_ROLES else None) for n, p in self.parts.items()]
+        if "main" not in roles and name == next(iter(self.parts)):
+            return "main"
+        return role_from_content(part)
+
+    def part_with(self, role: str) -> tuple[str, Part] | None:
+        """The (name, part) of the part with ``role``, or None."""
+        return next(((n, p) for n, p in self.parts.items() if self.role(n) == role), None)
+
+    @model_validator(mode="after")
+    def _one_part_per_role(self) -> Study:
+        roles = [self.role(n) for n in self.parts]
+        twice = sorted({r for r in roles if r != "other" and roles.count(r) > 1})
+        if twice:
+            raise ValueError(f"parts: more than one part has role {', '.join(twice)} "
+                             "(declare `role: other` on all but one)")
+        return self
 
     @field_validator("name")
     @classmethod

@@ -33,6 +33,7 @@ import pandas as pd
 
 from ..analysis import (
     METRICS,
+    RANKED_METRICS,
     cell_metrics,
     comparisons,
     controller_outcomes,
@@ -52,15 +53,13 @@ from .verdict import (
 )
 
 FAILURE_ORDER = ("pedestrian_collision", "world_collision", "timeout")  # worst first
-METRIC_LABELS = {"robot_time": "robot time [s]", "mean_delay": "mean delay [s]",
-                 "worst_decile": "worst-decile delay [s]", "cvar90": "CVaR-90 delay [s]"}
+METRIC_LABELS = {m.name: m.axis_label for m in RANKED_METRICS}
 #: the outcomes table's columns as the card and its Markdown / LaTeX export name them
 OUTCOME_LABELS = {"controller": "controller", "success_pct": "success %",
                   "pedestrian_collision_pct": "ped. coll. %",
                   "world_collision_pct": "world coll. %", "timeout_pct": "timeout %",
-                  "controller_error_pct": "ctrl error %", "robot_time": "robot time [s]",
-                  "mean_delay": "mean delay [s]", "worst_decile": "worst decile [s]",
-                  "n_runs": "runs"}
+                  "controller_error_pct": "ctrl error %",
+                  **{m: METRIC_LABELS[m] for m in METRICS}, "n_runs": "runs"}
 N_WORST = 2  # populations named as "where it does worst"
 
 

@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 
 from ..analysis import cell_metrics, paired_delays
+from ..analysis.ranked import RANKED_NAMES
 from ..analysis.summary import OUTCOMES
 from ..analysis.verdicts import clopper_pearson
 from ..engine.study import Study
@@ -34,7 +35,7 @@ from ..sim.controllers.registry import controller_id, parse_controller_id
 from ..tables import NO_ROBOT, RUN_KEY
 from .run import BASELINES, EVALUATE_DIR, Evaluation, evaluate, make_card, slug
 
-COMPARE_METRICS: tuple[str, ...] = ("robot_time", "mean_delay", "worst_decile", "cvar90")
+COMPARE_METRICS: tuple[str, ...] = RANKED_NAMES  # every ranked metric, as the card
 LEVEL = 0.95
 Log = Callable[[str], None]
 

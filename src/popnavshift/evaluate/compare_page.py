@@ -17,13 +17,14 @@ import numpy as np
 import pandas as pd
 from jinja2 import Environment, select_autoescape
 
+from ..analysis.ranked import names
 from ..io import write_text
 from .card import METRIC_LABELS
 from .card_page import population_panel, save_png
 from .compare import COMPARE_METRICS, Comparison
 from .export import write_table
 
-RANKED = ("robot_time", "mean_delay", "cvar90")  # the ranks the main table shows
+RANKED = names(summary=True)  # the ranks the main table shows
 _SHARES = {"success": "success %", "pedestrian_collision": "ped. coll. %",
            "world_collision": "wall/obstacle %", "timeout": "timeout %",
            "controller_error": "ctrl error %"}

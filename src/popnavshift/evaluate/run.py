@@ -50,10 +50,10 @@ from ..episodes.specs import all_episodes
 from ..errors import ConfigError, InputError
 from ..hashing import digest
 from ..io import write_json
+from ..paper import PAPER_CONTROLLERS
 from ..pipeline import read_table
 from ..sim.check import ControllerContractError, check_controller
 from ..sim.controllers import CONTROLLERS
-from ..sim.controllers.builtin import BUILTIN_CONTROLLERS
 from ..sim.controllers.registry import controller_id, parse_controller_id
 from ..tables import NO_ROBOT, RUN_KEY
 from ..version import __version__
@@ -62,7 +62,7 @@ from .card import OUTCOME_LABELS, card_tables
 from .card_page import write_card
 from .export import write_table
 
-BASELINES: tuple[str, ...] = BUILTIN_CONTROLLERS
+BASELINES: tuple[str, ...] = PAPER_CONTROLLERS  # a card sets a controller beside the paper's
 Tables = tuple[pd.DataFrame, pd.DataFrame]  # runs, pedestrians
 EVALUATE_DIR = "evaluate"
 Log = Callable[[str], None]

@@ -19,7 +19,8 @@ from ..errors import InputError, UnknownNameError
 from ..hashing import stable_seed
 from ..personas.fields import HIGH_TIME_PRESSURE, MOBILITY_SUPPORT
 from ..tables import PARAMS, check_table
-from .nulls import SIZED_SOURCE, parse_null, sized_subset, swap_variants
+from .identity import ARMS, MATCHED_PAIR, SIZED_SOURCE, PopulationSpec
+from .nulls import sized_subset, swap_variants
 
 POPULATIONS: tuple[str, ...] = (
     "homogeneous",
@@ -36,11 +37,10 @@ POPULATION_GROUPS: dict[str, tuple[str, ...]] = {
     "reference": ("homogeneous", "mixed"),
     "source-field": ("high_time_pressure", "mobility_support"),
     "probe-defined": ("high_caution", "low_robot_trust"),
-    "matched": ("matched_base", "matched_deadline"),
+    "matched": MATCHED_PAIR,
 }
-#: Random halves of a population, for the noise floor: ``<population>_half_a`` / ``_half_b``.
-HALF_SUFFIXES: tuple[str, str] = ("_half_a", "_half_b")
-SPLIT_HALVES: tuple[str, ...] = tuple(f"mixed{s}" for s in HALF_SUFFIXES)
+#: Random halves of mixed, for the noise floor: ``mixed_half_a`` / ``mixed_half_b``.
+SPLIT_HALVES: tuple[str, ...] = tuple(PopulationSpec.half("mixed", arm).name for arm in ARMS)
 HOMOGENEOUS_ID = "median"
 LOW_TRUST_MAX = 0.25
 HIGH_CAUTION_QUANTILE = 0.75
@@ -94,19 +94,19 @@ def membership(
 
     @cache
     def members(name: str) -> list[tuple[str, str]]:
-        null = parse_null(name)
-        if null is not None and null.kind == "swap":
-            return list(zip(pair, swap_variants(pair, null.replicate, null.arm, seed),
+        spec = PopulationSpec.parse(name)
+        if spec.role == "swap_null":
+            return list(zip(pair, swap_variants(pair, spec.replicate, spec.arm, seed),
                             strict=True))
-        if null is not None:
+        if spec.role == "sized_null":
             source = [pid for pid, _ in members(SIZED_SOURCE)]
-            size = len(members(null.of))
+            size = len(members(spec.base))
             return [(pid, "baseline")
-                    for pid in sized_subset(source, size, null.of, null.replicate, seed)]
+                    for pid in sized_subset(source, size, spec.base, spec.replicate, seed)]
         if name == "homogeneous":
             return [(HOMOGENEOUS_ID, "baseline")]
-        if name in ("matched_base", "matched_deadline"):
-            return [(pid, "baseline" if name == "matched_base" else "deadline") for pid in pair]
+        if name in MATCHED_PAIR:
+            return [(pid, "baseline" if name == MATCHED_PAIR[0] else "deadline") for pid in pair]
         if name in SPLIT_HALVES:
             return [(pid, "baseline") for pid in split_half(base, name, seed)]
         ids = base.loc[_SELECTORS[name](base).to_numpy(), "persona_id"]
@@ -131,16 +131,17 @@ def population_order(names) -> list[str]:
 def is_known(name: str) -> bool:
     """Whether ``name`` is a built-in population, a split half or a null population
     (whose size-matched source is itself known)."""
-    null = parse_null(name)
-    if null is not None:
-        return null.kind == "swap" or (null.of != SIZED_SOURCE and is_known(null.of)
-                                       and parse_null(null.of) is None)
+    spec = PopulationSpec.parse(name)
+    if spec.is_null:
+        return spec.role == "swap_null" or (spec.base != SIZED_SOURCE and is_known(spec.base)
+                                            and not PopulationSpec.parse(spec.base).is_null)
     return name in POPULATIONS + SPLIT_HALVES
 
 
 def split_half(base: pd.DataFrame, name: str, seed: int) -> list[str]:
     """The sorted ids of one random half (seeded) of the population ``name`` splits."""
-    parent, half = name.rsplit("_half_", 1)
+    spec = PopulationSpec.parse(name)
+    parent, half = spec.base, spec.arm
     ids = base.loc[_SELECTORS[parent](base).to_numpy(), "persona_id"].astype(str).to_numpy()
     rng = np.random.default_rng(stable_seed("split_half", seed, parent))
     order = rng.permutation(len(ids))

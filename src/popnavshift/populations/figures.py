@@ -19,6 +19,7 @@ import pandas as pd  # noqa: E402
 from ..io import write_atomic  # noqa: E402
 from ..tables import PARAM_RANGES, PARAMS  # noqa: E402
 from .build import POPULATION_GROUPS, POPULATIONS, population_sizes  # noqa: E402
+from .identity import MATCHED_PAIR  # noqa: E402
 
 PARAM_LABELS = {
     "speed_mps": "speed v",
@@ -81,8 +82,8 @@ def plot_median_positions(populations: pd.DataFrame) -> plt.Figure:
 
 
 def plot_matched_shift(populations: pd.DataFrame) -> plt.Figure:
-    base = populations[populations["population"] == "matched_base"].set_index("persona_id")
-    dead = populations[populations["population"] == "matched_deadline"].set_index("persona_id")
+    base = populations[populations["population"] == MATCHED_PAIR[0]].set_index("persona_id")
+    dead = populations[populations["population"] == MATCHED_PAIR[1]].set_index("persona_id")
     dead = dead.loc[base.index]
     fig, axes = plt.subplots(1, len(PARAMS), figsize=(12, 3.0))
     for ax, p in zip(axes, PARAMS, strict=True):
@@ -106,6 +107,6 @@ def write_profile_figures(populations: pd.DataFrame, folder: Path) -> list[Path]
     """Write fig3a/fig3b PNG+SVG into ``folder``; returns the paths."""
     folder = Path(folder)
     paths = save_figure(plot_median_positions(populations), folder / "fig3a_profiles")
-    if {"matched_base", "matched_deadline"} <= set(populations["population"]):
+    if set(MATCHED_PAIR) <= set(populations["population"]):
         paths += save_figure(plot_matched_shift(populations), folder / "fig3b_matched_shift")
     return paths

@@ -21,48 +21,25 @@ are declared in the study file, planned, cached and resumed like any other run.
   size-matched subset, so it has no sized population.
 * **Split halves** (``<population>_half_a`` / ``_half_b``, in :mod:`.build`) stay
   the persona-sampling diagnostic of the noise floor.
+
+Each is a :class:`popnavshift.populations.identity.PopulationSpec`, the one home of
+these names.
 """
 
 from __future__ import annotations
-
-import re
-from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
 from ..hashing import stable_seed
-
-SWAP_PREFIX = "matched_swap"
-SIZED_TAG = "_sized"
-#: The population every size-matched subset is drawn from (and its own null).
-SIZED_SOURCE = "mixed"
-ARMS: tuple[str, str] = ("a", "b")
-
-_SWAP = re.compile(rf"^{SWAP_PREFIX}(\d+)_([ab])$")
-_SIZED = re.compile(rf"^(.+){SIZED_TAG}(\d+)$")
-
-
-@dataclass(frozen=True)
-class NullName:
-    """A parsed null population name: its kind, replicate k (1-based) and either the
-    swap arm (``a``/``b``) or the population it stands in for (sized)."""
-
-    kind: str
-    replicate: int
-    arm: str = ""
-    of: str = ""
+from .identity import ARMS, SIZED_SOURCE, PopulationSpec
 
 
 def population_columns(name: str) -> dict[str, object]:
     """The runs and pedestrians tables' :data:`popnavshift.tables.POPULATION_COLUMNS` of
     population ``name``: its role (observed, swap_null, sized_null, half) and null
     replicate (0 unless a null), written to the tables so that no reader parses names."""
-    null = parse_null(name)
-    if null is not None:
-        return {"population_role": f"{null.kind}_null", "null_replicate": null.replicate}
-    half = name.endswith(("_half_a", "_half_b"))
-    return {"population_role": "half" if half else "observed", "null_replicate": 0}
+    return PopulationSpec.parse(name).columns()
 
 
 def with_population_columns(table: pd.DataFrame) -> pd.DataFrame:
@@ -78,27 +55,6 @@ def with_population_columns(table: pd.DataFrame) -> pd.DataFrame:
         out[column] = out[column].fillna(derived) if column in out else derived
     out["null_replicate"] = out["null_replicate"].astype("int64")
     return out
-
-
-def swap_name(replicate: int, arm: str) -> str:
-    """``matched_swap<k>_<arm>``: arm ``a`` or ``b`` of swap permutation ``k``."""
-    return f"{SWAP_PREFIX}{int(replicate)}_{arm}"
-
-
-def sized_name(population: str, replicate: int) -> str:
-    """``<population>_sized<k>``: replicate ``k`` of the size-matched subset of mixed."""
-    return f"{population}{SIZED_TAG}{int(replicate)}"
-
-
-def parse_null(name: str) -> NullName | None:
-    """The null a population name declares, or None for an ordinary population."""
-    m = _SWAP.match(name)
-    if m and int(m.group(1)) >= 1:
-        return NullName("swap", int(m.group(1)), arm=m.group(2))
-    m = _SIZED.match(name)
-    if m and int(m.group(2)) >= 1:
-        return NullName("sized", int(m.group(2)), of=m.group(1))
-    return None
 
 
 def swap_variants(ids: list[str], replicate: int, arm: str, seed: int) -> list[str]:
@@ -132,6 +88,7 @@ def null_populations(kind: str, replicates: int, populations: tuple[str, ...]) -
     """The population names of a null design: ``replicates`` swap permutations (both
     arms) or size-matched subsets of each of ``populations`` but ``mixed``."""
     if kind == "swap":
-        return tuple(swap_name(k, arm) for k in range(1, replicates + 1) for arm in ARMS)
-    return tuple(sized_name(p, k) for k in range(1, replicates + 1) for p in populations
-                 if p != SIZED_SOURCE)
+        return tuple(PopulationSpec.swap(k, arm).name for k in range(1, replicates + 1)
+                     for arm in ARMS)
+    return tuple(PopulationSpec.sized(p, k).name for k in range(1, replicates + 1)
+                 for p in populations if p != SIZED_SOURCE)

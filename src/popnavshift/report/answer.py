@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..analysis.ranked import names
 from ..analysis.verdicts import ABOVE, BELOW, CLAIMS, SMALL
 from ..populations.build import population_order
 from .blocks import Cell, Section, figure, fmt, para, pct, table
@@ -25,7 +26,7 @@ from .figures import controller_label, pop_label
 from .plain import LABELS, NULL_WORDS, answer_sentences, pp
 
 #: The headline's metrics, in the order the box lists them: burden first, then robot time.
-HEADLINE_METRICS: tuple[str, ...] = ("mean_delay", "worst_decile", "cvar90", "robot_time")
+HEADLINE_METRICS: tuple[str, ...] = (*names("burden"), *names("robot"))  # burden first
 COMPARISONS = {"matched": "Matched time-pressure shift (same personas)",
                "all_pairs": "All population pairs of the main grid"}
 
@@ -131,7 +132,7 @@ def answer_section(tables: dict[str, pd.DataFrame], missing: dict[str, str],
                            "Simultaneous 95% interval", "Decided by", "p (t)", "p (exact)",
                            "p (adjusted)", "Episode-only interval", "Nulls", "Verdict"], rows,
                           caption="Every headline rate against its null",
-                          csv="tables/evidence_headline.csv", collapsed=True))
+                          csv="evidence_headline", collapsed=True))
     if "evidence_nulls" in figs:
         s.blocks.append(figure(figs["evidence_nulls"], out,
                                "Observed reversal rates (red) against every null replicate "
@@ -151,7 +152,7 @@ def _burden_block(burden: pd.DataFrame) -> dict[str, Any]:
     return table(["Comparison", "Burden metric", "Rule", "Burden − robot-time rate",
                   "Same under the null", "Excess", "95% interval", "Decided by", "Verdict"], rows,
                  caption="'Burden reverses more than robot time', tested against the null "
-                 "(every null reverses burden more often too)", csv="tables/evidence_burden.csv")
+                 "(every null reverses burden more often too)", csv="evidence_burden")
 
 
 def ranks_section(tables: dict[str, pd.DataFrame]) -> Section:
@@ -186,24 +187,5 @@ def ranks_section(tables: dict[str, pd.DataFrame]) -> Section:
             rows.append(row)
         s.blocks.append(table(["Population", *[controller_label(c) for c in ctrls]], rows,
                               caption=f"{LABELS[metric]}: rank [interval] · grid mean · P(first)",
-                              csv="tables/evidence_ranks.csv"))
+                              csv="evidence_ranks"))
     return s
-
-
-def with_null_rates(reversals: pd.DataFrame, tables: dict[str, pd.DataFrame]) -> pd.DataFrame:
-    """Table I with ``null_rate``: the raw rate of each comparison's null at Table I's design
-    (one seed set, all cells) — the matched pair's swap null on the study seed's episodes,
-    the pairs' size-matched null on the main grid; NaN where the study ran no null."""
-    null = {}
-    curve, head = tables.get("evidence_curve"), tables.get("evidence_headline")
-    if curve is not None and not curve.empty:
-        c = curve[(curve["seed_sets"] == 1) & (curve["rule"] == "raw")
-                  & (curve["comparison"] == "matched")]
-        null.update({("matched", m): v for m, v in zip(c["metric"], c["null_mean"], strict=True)})
-    if head is not None and not head.empty:
-        h = head[(head["rule"] == "raw") & (head["seed_sets"] == 1)]
-        for r in h.itertuples():
-            null.setdefault((r.comparison, r.metric), r.null_mean)
-    key = zip(reversals["comparison"], reversals["metric"], strict=True)
-    rates = [null.get(k, np.nan) for k in key]
-    return reversals.assign(null_rate=np.where(reversals["cells"] == "all", rates, np.nan))

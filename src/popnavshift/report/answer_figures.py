@@ -12,10 +12,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from ..analysis.ranked import RANKED_NAMES  # noqa: E402
 from ..populations.figures import save_figure  # noqa: E402
 from .plain import LABELS  # noqa: E402
 
-METRICS: tuple[str, ...] = ("robot_time", "mean_delay", "worst_decile", "cvar90")
+METRICS: tuple[str, ...] = RANKED_NAMES
 TITLES = {"matched": "Matched time-pressure shift", "all_pairs": "All population pairs"}
 RULE_TITLES = {"raw": "raw rule (decides)", "sig": "significant rule"}
 

@@ -93,7 +93,7 @@ def audit_section(tables: dict[str, pd.DataFrame]) -> Section:
         [[r.respondent, r.model, r.personas, r.answer_rows, r.persona_records, _figures(r),
           Cell(r.verdict, "ok" if r.verdict == USABLE else "bad"), r.reasons or "–"]
          for r in v.itertuples()],
-        caption="Verdict per respondent", csv="tables/audit_verdict.csv"))
+        caption="Verdict per respondent", csv="audit_verdict"))
     sens, spread = tables["audit_sensitivity"], tables["audit_spread"]
     for r in v.itertuples():
         sp = spread[spread["respondent"] == r.respondent].set_index("column")
@@ -112,7 +112,7 @@ def audit_section(tables: dict[str, pd.DataFrame]) -> Section:
         s.blocks.append(table(["Answer / parameter", "Kind", "Levels used", "Entropy (bits)",
                                "Modal (share)", "R²", "Null R²", "Excess", "p", "Sensitive"],
                               rows, caption=f"{_who(r)}: spread and persona sensitivity",
-                              csv="tables/audit_sensitivity.csv", collapsed=True))
+                              csv="audit_sensitivity", collapsed=True))
     _directions(s, tables.get("audit_directions"))
     _manipulation(s, tables.get("audit_manipulation"))
     _retest(s, v, tables.get("audit_retest"))
@@ -148,7 +148,7 @@ def _directions(s: Section, d: pd.DataFrame | None) -> None:
             for r in d.itertuples()]
     s.blocks.append(table(["Respondent", "Persona field → answer", "Expected", "Why",
                            "Spearman ρ [95%]", "Outcome"], rows,
-                          caption="Expected directions", csv="tables/audit_directions.csv"))
+                          caption="Expected directions", csv="audit_directions"))
 
 
 def _manipulation(s: Section, m: pd.DataFrame | None) -> None:
@@ -166,7 +166,7 @@ def _manipulation(s: Section, m: pd.DataFrame | None) -> None:
     s.blocks.append(table(["Respondent", "Answer", "Expected", "Deadline − baseline [95%]",
                            "Up / down", "Changed", "Outcome"], rows,
                           caption="Matched intervention: the same personas with time pressure "
-                          "set to Deadline (paired)", csv="tables/audit_manipulation.csv"))
+                          "set to Deadline (paired)", csv="audit_manipulation"))
 
 
 def _agreement(s: Section, g: pd.DataFrame | None) -> None:
@@ -179,4 +179,4 @@ def _agreement(s: Section, g: pd.DataFrame | None) -> None:
     s.blocks.append(table(["Answer / parameter", "Kind", "Records", "Agree", "Within one level",
                            "κ / Spearman ρ / Pearson r"], rows,
                           caption="Agreement of the two respondents (same persona and variant)",
-                          csv="tables/audit_agreement.csv"))
+                          csv="audit_agreement"))

@@ -39,12 +39,22 @@ def pct(x: Any) -> str:
     return fmt(None if x is None else 100 * float(x), "{:.1f}%")
 
 
+#: the report's folder of tables, relative to index.html
+TABLES_DIR = "tables"
+
+
+def csv_path(name: str) -> str:
+    """The path of table ``name``'s CSV relative to index.html (where the build writes it)."""
+    return f"{TABLES_DIR}/{name}.csv"
+
+
 def table(columns: list[str], rows: list[list[Any]], *, caption: str = "", csv: str = "",
           collapsed: bool = False, groups: list[tuple[str, int]] | None = None) -> dict[str, Any]:
-    """A table block; ``groups`` is an optional header row above ``columns``: (label, span)."""
+    """A table block; ``csv`` names the analysis table it shows (its CSV is linked),
+    ``groups`` is an optional header row above ``columns``: (label, span)."""
     cells = [[c if isinstance(c, Cell) else Cell(str(c)) for c in r] for r in rows]
-    return {"kind": "table", "columns": columns, "rows": cells, "caption": caption, "csv": csv,
-            "collapsed": collapsed, "groups": groups or []}
+    return {"kind": "table", "columns": columns, "rows": cells, "caption": caption,
+            "csv": csv_path(csv) if csv else "", "collapsed": collapsed, "groups": groups or []}
 
 
 def para(text: str, kind: str = "p") -> dict[str, Any]:

@@ -20,15 +20,15 @@ import pandas as pd
 
 from ..analysis.audit_verdict import audit_tables
 from ..analysis.study import analyse
-from ..analysis.study_evidence import evidence_tables
+from ..analysis.study_evidence import evidence_tables, with_null_rates
 from ..analysis.study_robustness import robustness_tables
 from ..engine.folder import main_grid, read_study_folder
 from ..engine.respondent_tables import read_respondent_tables
 from ..hashing import digest
 from ..io import write_atomic, write_json, write_text
 from ..version import __version__
-from .answer import with_null_rates
 from .answer_figures import write_answer_figures
+from .blocks import TABLES_DIR, csv_path
 from .figures import profile_figures, write_figures
 from .page import render_report
 from .replays import write_replays
@@ -120,7 +120,7 @@ def build_report(folder: Path, *, rng_seed: int = 0, n_boot: int = 1000, replays
         analysis.tables["replays"] = reps
     elif replays <= 0:
         analysis.missing["replays"] = "replays were not asked for (replays=0)"
-    written = write_tables(analysis.tables, out / "tables")
+    written = write_tables(analysis.tables, out)
     written += [p.with_suffix(x) for p in {**figures, **fig3}.values() for x in (".png", ".svg")]
     if reps is not None:
         files = [out / f for f in reps["file"] if f]
@@ -134,10 +134,11 @@ def build_report(folder: Path, *, rng_seed: int = 0, n_boot: int = 1000, replays
 
 
 def write_tables(tables: dict[str, pd.DataFrame], folder: Path) -> list[Path]:
-    """Each table as ``folder/<name>.csv`` (full precision, no index)."""
+    """Each table as ``folder/tables/<name>.csv`` (:func:`.blocks.csv_path`; full
+    precision, no index)."""
     paths = []
     for name, df in tables.items():
-        paths.append(write_atomic(folder / f"{name}.csv", partial(df.to_csv, index=False)))
+        paths.append(write_atomic(folder / csv_path(name), partial(df.to_csv, index=False)))
     return paths
 
 
@@ -145,7 +146,7 @@ def prune(out: Path, written: list[Path]) -> None:
     """Delete what an earlier build left in ``tables/``, ``figures/`` and ``replays/``, so a
     section that is now missing cannot show a stale file."""
     keep = {p.resolve() for p in written}
-    for sub in ("tables", "figures", "replays"):
+    for sub in (TABLES_DIR, "figures", "replays"):
         for path in (out / sub).glob("*") if (out / sub).is_dir() else ():
             if path.is_file() and path.resolve() not in keep:
                 path.unlink()

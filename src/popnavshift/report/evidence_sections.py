@@ -36,7 +36,7 @@ def power_block(power: pd.DataFrame) -> dict:
                   "Verdict", "What would decide it (80% power)"], rows,
                  caption="Power: what would decide each verdict. b: the null's SD falls as "
                  "(seed sets)^−b, fitted on the study's own replicate curve (0: more seed sets "
-                 "do not help)", csv="tables/evidence_power.csv")
+                 "do not help)", csv="evidence_power")
 
 
 def replicates_section(tables: dict[str, pd.DataFrame], missing: dict[str, str],
@@ -61,7 +61,7 @@ def replicates_section(tables: dict[str, pd.DataFrame], missing: dict[str, str],
                                "P(recurs in another seed set)", "Recurred / opportunities"],
                               rows, caption="Replicability of a reversal seen in one seed set "
                               "(raw rule): a population effect recurs more often than its rate",
-                              csv="tables/evidence_replicability.csv"))
+                              csv="evidence_replicability"))
     if power is not None and not power.empty:
         s.blocks.append(power_block(power))
     return s
@@ -97,5 +97,5 @@ def calibration_section(tables: dict[str, pd.DataFrame]) -> Section:
                            "95% CI", "Status"], rows,
                           caption="Every verdict rule on the study's placebos: the headline "
                           "table as a whole, then each test pooled over comparisons and metrics",
-                          csv="tables/evidence_calibration.csv"))
+                          csv="evidence_calibration"))
     return s

@@ -22,11 +22,13 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
 
-from ..analysis import MATCHED, METRICS  # noqa: E402
+from ..analysis import METRICS, RANKED_METRICS  # noqa: E402
 from ..analysis.paper_reference import WIDTH_SENSITIVITY  # noqa: E402
+from ..analysis.study import CHANGE_METRICS  # noqa: E402
 from ..analysis.summary import controller_order  # noqa: E402
 from ..populations.build import POPULATION_GROUPS, population_order  # noqa: E402
 from ..populations.figures import save_figure, write_profile_figures  # noqa: E402
+from ..populations.identity import MATCHED_PAIR  # noqa: E402
 from ..viz.style import controller_style  # noqa: E402
 
 if TYPE_CHECKING:
@@ -34,11 +36,10 @@ if TYPE_CHECKING:
 
 CONTROLLER_LABELS = {"reactive": "Reactive", "early_yield": "Early yielding",
                      "robot_orca": "Robot-ORCA", "pooled": "pooled", "none": "no robot"}
-METRIC_LABELS = {"robot_time": "Robot travel time", "mean_delay": "Mean pedestrian delay",
-                 "worst_decile": "Worst-decile delay"}
+METRIC_LABELS = {m.name: m.title for m in RANKED_METRICS}
 #: Fig. 2 row groups, top to bottom: matched pair, source-field cohorts, mixed, probe cohorts.
 CHANGE_GROUPS: tuple[tuple[str, ...], ...] = (
-    (MATCHED[1],), POPULATION_GROUPS["source-field"], ("mixed",),
+    (MATCHED_PAIR[1],), POPULATION_GROUPS["source-field"], ("mixed",),
     POPULATION_GROUPS["probe-defined"])
 
 
@@ -111,7 +112,7 @@ def plot_delay_change(change: pd.DataFrame) -> plt.Figure:
     The matched row (deadline − base, same personas) is outlined; white lines
     separate the matched pair, source-field cohorts, mixed and probe cohorts.
     """
-    metrics = [m for m in ("mean_delay", "worst_decile") if (change["metric"] == m).any()]
+    metrics = [m for m in CHANGE_METRICS if (change["metric"] == m).any()]
     rows, breaks = change_rows(sorted(change["population"].unique()))
     ctrls = controller_order(change["controller"].unique())
     vmax = float(np.nanmax(np.abs(change["change"].to_numpy(float)))) or 1.0
@@ -130,8 +131,8 @@ def plot_delay_change(change: pd.DataFrame) -> plt.Figure:
                     fontsize=8, color="white" if abs(v) > 0.6 * vmax else "black")
         for b in breaks:
             ax.axhline(b - 0.5, color="white", lw=4)
-        if MATCHED[1] in rows:
-            i = rows.index(MATCHED[1])
+        if MATCHED_PAIR[1] in rows:
+            i = rows.index(MATCHED_PAIR[1])
             ax.add_patch(Rectangle((-0.5, i - 0.5), len(ctrls), 1, fill=False, lw=2.5,
                                    edgecolor="black"))
         ax.set_xticks(range(len(ctrls)), [controller_label(k) for k in ctrls], fontsize=8)

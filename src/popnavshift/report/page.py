@@ -10,6 +10,8 @@ has no script.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -19,8 +21,15 @@ from ..analysis.study import Analysis
 from ..engine.folder import StudyFolder
 from .answer import answer_section, ranks_section
 from .audit_section import answer_flag, audit_banner, audit_section
+from .blocks import Section
 from .evidence_sections import calibration_section, replicates_section
-from .robustness import robustness_sections
+from .robustness import (
+    backend_section,
+    mapping_section,
+    respondent_section,
+    seeds_section,
+    structure_section,
+)
 from .sections import (
     change_section,
     noise_section,
@@ -55,21 +64,55 @@ def respondent_note(manifest: dict[str, Any]) -> tuple[str, str]:
     return "p", f"Probe responses come from the language model {model} ({name} respondent{where})."
 
 
+@dataclass(frozen=True)
+class Page:
+    """What every section renders from: the study folder, its analysis, the figures (name
+    → PNG path), the report folder and the build settings."""
+
+    study: StudyFolder
+    a: Analysis
+    figs: dict[str, Path]
+    out: Path
+    settings: dict[str, Any]
+
+    def missing(self, key: str) -> str:
+        return self.a.missing.get(key, "")
+
+
+#: The page's sections in reading order: (section id, render). A new section is a
+#: function returning a :class:`~.blocks.Section` and one line here.
+SECTIONS: tuple[tuple[str, Callable[[Page], Section]], ...] = (
+    ("answer", lambda p: answer_section(p.a.tables, p.a.missing, p.figs, p.out)),
+    ("ranks", lambda p: ranks_section(p.a.tables)),
+    ("replicates", lambda p: replicates_section(p.a.tables, p.a.missing, p.figs, p.out)),
+    ("calibration", lambda p: calibration_section(p.a.tables)),
+    ("audit", lambda p: audit_section(p.a.tables)),
+    ("populations", lambda p: populations_section(p.study, p.a.populations, p.figs, p.out)),
+    ("checks", lambda p: checks_section(p.a)),
+    ("summary", lambda p: summary_section(p.a)),
+    ("table1", lambda p: reversals_section(p.a, p.figs, p.out)),
+    ("noise", lambda p: noise_section(p.a)),
+    ("table2", lambda p: outcomes_section(p.a)),
+    ("change", lambda p: change_section(p.a, p.figs, p.out)),
+    ("sensitivity", lambda p: sensitivity_section(p.a, p.figs, p.out)),
+    ("tau", lambda p: tau_section(p.a, p.figs, p.out)),
+    ("tradeoff", lambda p: tradeoff_section(p.a, p.figs, p.out)),
+    ("mapping", lambda p: mapping_section(p.a.tables, p.missing("robust_mapping"))),
+    ("structure", lambda p: structure_section(p.a.tables, p.missing("robust_structure"))),
+    ("backend", lambda p: backend_section(p.a.tables, p.missing("robust_backend"))),
+    ("respondent", lambda p: respondent_section(p.a.tables, p.missing("robust_respondent"),
+                                                second_respondent(p.study.manifest))),
+    ("seeds", lambda p: seeds_section(p.a.tables, p.missing("robust_seeds"))),
+    ("replays", lambda p: replays_section(p.a)),
+    ("manifest", lambda p: manifest_section(p.study, p.settings)),
+)
+
+
 def render_report(study: StudyFolder, a: Analysis, figs: dict[str, Path], out: Path,
                   settings: dict[str, Any]) -> str:
     """The HTML page (a string) of analysis ``a``; ``figs`` maps figure names to PNG paths."""
-    sections = [
-        answer_section(a.tables, a.missing, figs, out), ranks_section(a.tables),
-        replicates_section(a.tables, a.missing, figs, out),
-        calibration_section(a.tables), audit_section(a.tables),
-        populations_section(study, a.populations, figs, out), checks_section(a), summary_section(a),
-        reversals_section(a, figs, out), noise_section(a), outcomes_section(a),
-        change_section(a, figs, out), sensitivity_section(a, figs, out),
-        tau_section(a, figs, out), tradeoff_section(a, figs, out),
-        *robustness_sections(a.tables, {k[len("robust_"):]: v for k, v in a.missing.items()
-                                        if k.startswith("robust_")},
-                             second_respondent(study.manifest)),
-        replays_section(a), manifest_section(study, settings)]
+    page = Page(study, a, figs, out, settings)
+    sections = [render(page) for _, render in SECTIONS]
     if "profiles" in a.missing and not any(b["kind"] == "figure" for b in sections[0].blocks):
         sections[0].missing = a.missing["profiles"]
     flag = answer_flag(a.tables)  # a respondent that is not usable: said before any rate

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..analysis.ranked import RANKED_METRICS, names
 from ..analysis.verdicts import (
     ABOVE,
     BELOW,
@@ -28,10 +29,9 @@ from ..analysis.verdicts import (
 from .blocks import pct
 from .figures import controller_label, pop_label
 
-BURDEN = ("mean_delay", "worst_decile", "cvar90")
-ROBOT = ("robot_time",)
-LABELS = {"robot_time": "robot time", "mean_delay": "mean delay",
-          "worst_decile": "worst-decile delay", "cvar90": "CVaR-90 delay"}
+BURDEN = names("burden")
+ROBOT = names("robot")
+LABELS = {m.name: m.label for m in RANKED_METRICS}
 NULL_WORDS = {"swap": "swap permutations of their profiles",
               "sized": "size-matched random subsets of mixed"}
 

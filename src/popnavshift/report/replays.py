@@ -18,7 +18,7 @@ import pandas as pd
 
 from ..analysis.delay import episode_cells
 from ..analysis.study import Analysis
-from ..engine.folder import StudyFolder, stored_pedestrians, study_seed
+from ..engine.folder import StudyFolder, stored_pedestrians
 from ..engine.rebuild import rebuild_run
 from ..errors import PopNavShiftError
 from ..tables import NO_ROBOT, RUN_KEY
@@ -134,7 +134,7 @@ def write_replays(study: StudyFolder, a: Analysis, runs: pd.DataFrame,
     report), ``reproduced`` (every stored column equal, bit for bit) and
     ``differences``; None with ``a.missing["replays"]`` set when impossible.
     """
-    seed = study_seed(study.manifest)
+    seed = study.seed
     if n <= 0:
         return None
     if study.populations is None or seed is None:

@@ -60,7 +60,7 @@ def seeds_section(tables: dict[str, pd.DataFrame], missing: str) -> Section:
         table(
             ["Part", "Metric", "Rate per seed set", "Mean", "Range"],
             rows,
-            csv="tables/robust_seeds.csv",
+            csv="robust_seeds",
         )
     )
     return s
@@ -90,124 +90,77 @@ def _perturbation_key(r: Any) -> str | None:
     return r.perturbation if r.profile_base == "A" else None
 
 
-def robustness_sections(
-    tables: dict[str, pd.DataFrame], missing: dict[str, str], respondent2: str
-) -> list[Section]:
-    """The four robustness sections of the page."""
-    cols = ["Metric", "Ours", "95% CI", "Reversals / comparable", "Paper"]
-    out = []
-    s = Section(
-        "mapping", "Mapping sensitivity (paper Table III)", missing=missing.get("mapping", "")
-    )
-    if "robust_mapping" in tables:
-        s.blocks.append(
-            para(
-                "Twelve representative episodes, all population pairs; Mappings "
-                "A–D use the same responses, membership and episode assignments. "
-                "Agreement: share of controller orderings (non-tied under both) "
-                "that a mapping shares with Mapping A."
-            )
-        )
-        t, ag = (
-            tables["robust_mapping"],
-            tables["robust_agreement"].set_index(["metric", "mapping"]),
-        )
-        rows = []
-        for r in t[t["metric"] != "robot_time"].sort_values(["mapping", "metric"]).itertuples():
-            a = ag["agreement"].get((r.metric, r.mapping), np.nan)
-            rows.append(
-                [
-                    r.mapping,
-                    METRIC_LABELS[r.metric],
-                    *_rate_cells(r),
-                    _paper(paper.MAPPING_RATE, _mapping_key(r), r.metric),
-                    "—" if r.mapping == "A" else pct(a),
-                    _paper(paper.MAPPING_AGREEMENT, _mapping_key(r), r.metric),
-                ]
-            )
-        s.blocks.append(
-            table(
-                ["Mapping", *cols, "Agreement with A", "Paper"],
-                rows,
-                csv="tables/robust_mapping.csv",
-            )
-        )
-    out.append(s)
+COLS = ["Metric", "Ours", "95% CI", "Reversals / comparable", "Paper"]
 
-    s = Section("structure", "Profile structure (paper §V-D)", missing=missing.get("structure", ""))
-    if "robust_structure" in tables:
-        s.blocks.append(
-            para(
-                "Five shared populations on the twelve representative episodes. "
-                "Reassigning whole profiles among persona ids keeps the profiles "
-                "and breaks who has them; shuffling each column keeps every "
-                "marginal and breaks the associations between parameters; single "
-                "blocks let only one response block vary."
-            )
-        )
-        t = tables["robust_structure"]
-        rows = [
-            [
-                set_label(r),
-                METRIC_LABELS[r.metric],
-                *_rate_cells(r),
-                _paper(paper.STRUCTURE_RATE, _perturbation_key(r), r.metric),
-            ]
-            for r in t.sort_values(["mapping", "metric"]).itertuples()
-        ]
-        s.blocks.append(table(["Profiles", *cols], rows, csv="tables/robust_structure.csv"))
-    out.append(s)
 
-    s = Section(
-        "backend",
-        "Pedestrian dynamics: Ped-ORCA vs navground HL (paper §V-E)",
-        missing=missing.get("backend", ""),
-    )
-    if "robust_backend" in tables:
-        s.blocks.append(
-            para(
-                "Twelve obstacle-free episodes, four populations, everything else "
-                "matched; only (cell, population) units completed by all three "
-                "controllers under both backends count."
-            )
-        )
-        t = tables["robust_backend"]
-        rows = [
-            [
-                r.backend,
-                METRIC_LABELS[r.metric],
-                *_rate_cells(r),
-                _paper(paper.BACKEND_RATE, r.backend, r.metric),
-            ]
-            for r in t.sort_values(["backend", "metric"]).itertuples()
-        ]
-        s.blocks.append(table(["Backend", *cols], rows, csv="tables/robust_backend.csv"))
-    out.append(s)
+def mapping_section(tables: dict[str, pd.DataFrame], missing: str) -> Section:
+    """Mappings A–D against each other (paper Table III), with agreement with A."""
+    s = Section("mapping", "Mapping sensitivity (paper Table III)", missing=missing)
+    if "robust_mapping" not in tables:
+        return s
+    s.blocks.append(para("Twelve representative episodes, all population pairs; Mappings "
+                         "A–D use the same responses, membership and episode assignments. "
+                         "Agreement: share of controller orderings (non-tied under both) "
+                         "that a mapping shares with Mapping A."))
+    t, ag = tables["robust_mapping"], tables["robust_agreement"].set_index(["metric", "mapping"])
+    rows = []
+    for r in t[t["metric"] != "robot_time"].sort_values(["mapping", "metric"]).itertuples():
+        a = ag["agreement"].get((r.metric, r.mapping), np.nan)
+        rows.append([r.mapping, METRIC_LABELS[r.metric], *_rate_cells(r),
+                     _paper(paper.MAPPING_RATE, _mapping_key(r), r.metric),
+                     "—" if r.mapping == "A" else pct(a),
+                     _paper(paper.MAPPING_AGREEMENT, _mapping_key(r), r.metric)])
+    s.blocks.append(table(["Mapping", *COLS, "Agreement with A", "Paper"], rows,
+                          csv="robust_mapping"))
+    return s
 
-    s = Section(
-        "respondent",
-        "Respondent robustness: the matched intervention again",
-        missing=missing.get("respondent", ""),
-    )
-    if "robust_respondent" in tables:
-        s.blocks.append(
-            para(
-                f"The same persona ids answered by a second respondent "
-                f"({respondent2}); probe-defined cohorts are not compared because "
-                "their membership depends on the respondent."
-            )
-        )
-        t = tables["robust_respondent"]
-        rows = [
-            [
-                "first (Mapping A)" if r.perturbation == "none" else f"second ({r.mapping})",
-                METRIC_LABELS[r.metric],
-                *_rate_cells(r),
-                _paper(paper.RESPONDENT_RATE, _perturbation_key(r), r.metric),
-            ]
-            for r in t.sort_values(["mapping", "metric"]).itertuples()
-        ]
-        s.blocks.append(table(["Respondent", *cols], rows, csv="tables/robust_respondent.csv"))
-    out.append(s)
-    out.append(seeds_section(tables, missing.get("seeds", "")))
-    return out
+
+def structure_section(tables: dict[str, pd.DataFrame], missing: str) -> Section:
+    """Perturbed profile sets against the unperturbed one (paper §V-D)."""
+    s = Section("structure", "Profile structure (paper §V-D)", missing=missing)
+    if "robust_structure" not in tables:
+        return s
+    s.blocks.append(para("Five shared populations on the twelve representative episodes. "
+                         "Reassigning whole profiles among persona ids keeps the profiles "
+                         "and breaks who has them; shuffling each column keeps every "
+                         "marginal and breaks the associations between parameters; single "
+                         "blocks let only one response block vary."))
+    rows = [[set_label(r), METRIC_LABELS[r.metric], *_rate_cells(r),
+             _paper(paper.STRUCTURE_RATE, _perturbation_key(r), r.metric)]
+            for r in tables["robust_structure"].sort_values(["mapping", "metric"]).itertuples()]
+    s.blocks.append(table(["Profiles", *COLS], rows, csv="robust_structure"))
+    return s
+
+
+def backend_section(tables: dict[str, pd.DataFrame], missing: str) -> Section:
+    """Ped-ORCA against navground's HL pedestrians (paper §V-E)."""
+    s = Section("backend", "Pedestrian dynamics: Ped-ORCA vs navground HL (paper §V-E)",
+                missing=missing)
+    if "robust_backend" not in tables:
+        return s
+    s.blocks.append(para("Twelve obstacle-free episodes, four populations, everything else "
+                         "matched; only (cell, population) units completed by all three "
+                         "controllers under both backends count."))
+    rows = [[r.backend, METRIC_LABELS[r.metric], *_rate_cells(r),
+             _paper(paper.BACKEND_RATE, r.backend, r.metric)]
+            for r in tables["robust_backend"].sort_values(["backend", "metric"]).itertuples()]
+    s.blocks.append(table(["Backend", *COLS], rows, csv="robust_backend"))
+    return s
+
+
+def respondent_section(tables: dict[str, pd.DataFrame], missing: str,
+                       respondent2: str) -> Section:
+    """The matched intervention answered by a second respondent (``respondent2``)."""
+    s = Section("respondent", "Respondent robustness: the matched intervention again",
+                missing=missing)
+    if "robust_respondent" not in tables:
+        return s
+    s.blocks.append(para(f"The same persona ids answered by a second respondent "
+                         f"({respondent2}); probe-defined cohorts are not compared because "
+                         "their membership depends on the respondent."))
+    rows = [["first (Mapping A)" if r.perturbation == "none" else f"second ({r.mapping})",
+             METRIC_LABELS[r.metric], *_rate_cells(r),
+             _paper(paper.RESPONDENT_RATE, _perturbation_key(r), r.metric)]
+            for r in tables["robust_respondent"].sort_values(["mapping", "metric"]).itertuples()]
+    s.blocks.append(table(["Respondent", *COLS], rows, csv="robust_respondent"))
+    return s

@@ -12,13 +12,14 @@ from typing import Any
 
 import pandas as pd
 
-from ..analysis import MATCHED, METRICS
+from ..analysis import METRICS
 from ..analysis import paper_reference as paper
-from ..analysis.study import Analysis
+from ..analysis.study import CHANGE_METRICS, Analysis
 from ..analysis.summary import controller_order
 from ..analysis.surviving import findings_list
 from ..analysis.verdicts import ABOVE
 from ..populations.build import population_order
+from ..populations.identity import MATCHED_PAIR
 from .blocks import Cell, Section, figure, fmt, para, pct, table
 from .figures import METRIC_LABELS, change_rows, controller_label, pop_label, tau_matrix
 
@@ -116,7 +117,7 @@ def _rate_row(t: pd.DataFrame, metric: str, scopes: tuple[str, ...]) -> list[Any
 
 def reversals_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
     s = Section("table1", "Ranking reversals across populations (paper Table I, §V-A)",
-                missing=a.missing.get("table1", ""))
+                missing=a.missing.get("reversals", ""))
     t = a.tables.get("reversals")
     if t is None:
         return s
@@ -134,14 +135,14 @@ def reversals_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
     design = (f"main grid, {variants} variants per cell (the paper's design; the answer's "
               "rates pool more seed sets where the study ran them)")
     for comp, title in (("all_pairs", f"All {pops * (pops - 1) // 2} population pairs"),
-                        ("matched", "Matched time-pressure intervention (" + " vs ".join(MATCHED)
-                         + ", same personas)")):
+                        ("matched", "Matched time-pressure intervention ("
+                         + " vs ".join(MATCHED_PAIR) + ", same personas)")):
         sel = t[t["comparison"] == comp]
         if sel.empty:
             s.blocks.append(para(f"{title}: {a.missing.get('matched', 'not available')}.", "note"))
             continue
         rows = [_rate_row(sel, m, ("all", "completed")) for m in METRICS]
-        s.blocks.append(table(cols, rows, caption=f"{title} — {design}", csv="tables/reversals.csv",
+        s.blocks.append(table(cols, rows, caption=f"{title} — {design}", csv="reversals",
                               groups=groups))
     if "reversal_rates" in figs:
         s.blocks.append(figure(figs["reversal_rates"], out, "Reversal rates with 95% intervals; "
@@ -167,7 +168,7 @@ def descriptive_note(head: pd.DataFrame | None, power: pd.DataFrame | None) -> s
 
 def noise_section(a: Analysis) -> Section:
     s = Section("noise", "Noise floor: reversals between two random halves of one population",
-                missing=a.missing.get("noise", ""))
+                missing=a.missing.get("noise_floor", ""))
     t = a.tables.get("noise_floor")
     if t is None:
         return s
@@ -184,13 +185,13 @@ def noise_section(a: Analysis) -> Section:
              pct(pairs.get((r.cells, r.metric)))] for r in t.itertuples(index=False)]
     s.blocks.append(table(["Split population", "Cells", "Metric", "Reversals / comparable",
                            "Noise floor", "All population pairs"], rows,
-                          csv="tables/noise_floor.csv"))
+                          csv="noise_floor"))
     return s
 
 
 def outcomes_section(a: Analysis) -> Section:
     s = Section("table2", "Controller outcomes (paper Table II, §V-C)",
-                missing=a.missing.get("table2", ""))
+                missing=a.missing.get("controller_outcomes", ""))
     t = a.tables.get("controller_outcomes")
     if t is None:
         return s
@@ -204,7 +205,7 @@ def outcomes_section(a: Analysis) -> Section:
         Cell(fmt(theirs.get(c, {}).get(col), pattern), "paper"))] for col, label, pattern in
         OUTCOME_ROWS if col in t.columns]
     rows.append(["Robot runs"] + [x for c in ctrls for x in (int(t.at[c, "n_runs"]), "")])
-    s.blocks.append(table(cols, rows, csv="tables/controller_outcomes.csv", groups=groups))
+    s.blocks.append(table(cols, rows, csv="controller_outcomes", groups=groups))
     s.blocks.append(para("Delays are the mean over (cell, population) rows of each cell's "
                          "statistic; robot time counts 45 s for failed runs."))
     return s
@@ -212,7 +213,7 @@ def outcomes_section(a: Analysis) -> Section:
 
 def change_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
     s = Section("change", "Change in pedestrian delay under population shift (paper Fig. 2)",
-                missing=a.missing.get("change", ""))
+                missing=a.missing.get("delay_change", ""))
     t = a.tables.get("delay_change")
     if t is None:
         return s
@@ -226,13 +227,13 @@ def change_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
                          values="change")
     cols = ["Shifted − reference"] + [controller_label(c) for c in ctrls] * 2
     groups = [("", 1)] + [(f"{METRIC_LABELS[m]} (s)", len(ctrls))
-                          for m in ("mean_delay", "worst_decile")]
+                          for m in CHANGE_METRICS]
     order = change_rows(wide.index.get_level_values("population"))[0]
     refs = dict(wide.index.tolist())
     rows = [[f"{pop_label(p)} − {pop_label(refs[p])}"] + [
-        fmt(wide.loc[(p, refs[p])].get((m, c)), "{:+.2f}") for m in ("mean_delay", "worst_decile")
+        fmt(wide.loc[(p, refs[p])].get((m, c)), "{:+.2f}") for m in CHANGE_METRICS
         for c in ctrls] for p in order]
-    s.blocks.append(table(cols, rows, csv="tables/delay_change.csv", groups=groups))
+    s.blocks.append(table(cols, rows, csv="delay_change", groups=groups))
     sign = paper.MATCHED_CHANGE_SIGN
     s.blocks.append(para("The paper's matched row: lower delay under " + ", ".join(
         controller_label(c) for c, v in sign.items() if v < 0) + "; higher under " + ", ".join(
@@ -242,7 +243,7 @@ def change_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
 
 def sensitivity_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
     s = Section("sensitivity", "Population sensitivity vs available width (paper Fig. 4)",
-                missing=a.missing.get("sensitivity", ""))
+                missing=a.missing.get("sensitivity_by_width", ""))
     t = a.tables.get("sensitivity_by_width")
     if t is None:
         return s
@@ -265,12 +266,13 @@ def sensitivity_section(a: Analysis, figs: dict[str, Path], out: Path) -> Sectio
         row.append(Cell(fmt(paper.WIDTH_SENSITIVITY.get(float(w))), "paper"))
         rows.append(row)
     cols = ["Width (m)"] + [f"{v[3]} (s)" for v in views] + ["Paper, pooled (s)"]
-    s.blocks.append(table(cols, rows, csv="tables/sensitivity_by_width.csv"))
+    s.blocks.append(table(cols, rows, csv="sensitivity_by_width"))
     return s
 
 
 def tau_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
-    s = Section("tau", "Kendall τ between population rankings", missing=a.missing.get("tau", ""))
+    s = Section("tau", "Kendall τ between population rankings",
+                missing=a.missing.get("kendall_tau", ""))
     t = a.tables.get("kendall_tau")
     if t is None:
         return s
@@ -285,7 +287,7 @@ def tau_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
     rows = [[f"{pop_label(x)} vs {pop_label(y)}"] + [fmt(m.loc[x, y]) for m in mats.values()]
             for x, y in pairs]
     s.blocks.append(table(["Population pair"] + [METRIC_LABELS[m] for m in mats], rows,
-                          csv="tables/kendall_tau.csv", collapsed=True))
+                          csv="kendall_tau", collapsed=True))
     return s
 
 
@@ -304,6 +306,6 @@ def tradeoff_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
              fmt(r.mean_delay), fmt(r.worst_decile), fmt(r.success_pct, "{:.1f}")]
             for r in t.itertuples(index=False)]
     s.blocks.append(table(["Population", "Controller", "Robot time (s)", "Mean delay (s)",
-                           "Worst decile (s)", "Success (%)"], rows, csv="tables/tradeoff.csv",
+                           "Worst decile (s)", "Success (%)"], rows, csv="tradeoff",
                           collapsed=True))
     return s

@@ -14,7 +14,7 @@ import pandas as pd
 from ..analysis.study import Analysis
 from ..engine.folder import StudyFolder
 from ..populations.build import population_order
-from ..populations.nulls import parse_null
+from ..populations.identity import PopulationSpec
 from .blocks import Cell, Section, figure, fmt, para, pct, table
 from .figures import controller_label, pop_label
 
@@ -26,11 +26,12 @@ def populations_section(study: StudyFolder, analysed: list[str], figs: dict[str,
     if pops is not None:
         a = pops[pops["mapping"] == "A"] if "mapping" in pops else pops
         n = a.groupby("population")["persona_id"].nunique()
-        nulls = {p: parse_null(p) for p in n.index}
-        order, used = population_order([p for p in n.index if nulls[p] is None]), set(analysed)
+        specs = {p: PopulationSpec.parse(p) for p in n.index}
+        order = population_order([p for p in n.index if not specs[p].is_null])
+        used = set(analysed)
         rows: list[list[Any]] = [[pop_label(p), int(n[p]), "yes" if p in used else "no"]
                                  for p in order]
-        rows += null_rows(n, nulls)
+        rows += null_rows(n, specs)
         s.blocks.append(table(["Population", "Members", "In the analysed runs"], rows,
                               caption="Cohort sizes (null replicates: one line per null design)"))
     caps = {"fig3a_profiles": "(a) Median position of each motion parameter within its range, "
@@ -40,16 +41,16 @@ def populations_section(study: StudyFolder, analysed: list[str], figs: dict[str,
     return s
 
 
-def null_rows(sizes: pd.Series, nulls: dict) -> list[list[str]]:
+def null_rows(sizes: pd.Series, specs: dict[str, PopulationSpec]) -> list[list[str]]:
     """One line per null design among the populations (swap permutations, size-matched
     subsets): how many replicates and populations, and the members of each."""
     rows = []
-    for kind, words in (("swap", "swap permutations of the matched pair (2 arms each)"),
-                        ("sized", "size-matched random subsets of mixed (one per cohort)")):
-        names = [p for p, x in nulls.items() if x is not None and x.kind == kind]
+    for role, words in (("swap_null", "swap permutations of the matched pair (2 arms each)"),
+                        ("sized_null", "size-matched random subsets of mixed (one per cohort)")):
+        names = [p for p, s in specs.items() if s.role == role]
         if not names:
             continue
-        k = len({nulls[p].replicate for p in names})
+        k = len({specs[p].replicate for p in names})
         lo, hi = int(sizes[names].min()), int(sizes[names].max())
         rows.append([f"null: {k} {words}, {len(names)} populations",
                      f"{lo}" if lo == hi else f"{lo}–{hi}", "in the headline tests"])
@@ -58,7 +59,7 @@ def null_rows(sizes: pd.Series, nulls: dict) -> list[list[str]]:
 
 def checks_section(a: Analysis) -> Section:
     s = Section("checks", "No-robot sanity checks (before any controller is scored)",
-                missing=a.missing.get("checks", ""))
+                missing=a.missing.get("no_robot_checks", ""))
     t = a.tables.get("no_robot_checks")
     if t is not None:
         t = t.set_index("population").loc[population_order(t["population"])].reset_index()
@@ -74,14 +75,14 @@ def checks_section(a: Analysis) -> Section:
         s.blocks.append(table(
             ["Population", "Pedestrians", "Never arrived", "Check", "Travel time mean (s)",
              "p10 (s)", "p50 (s)", "p90 (s)", "Walked mean (m)", "Speed mean (m/s)"], rows,
-            csv="tables/no_robot_checks.csv"))
+            csv="no_robot_checks"))
     share = a.tables.get("paired_share")
     if share is not None:
         s.blocks.append(table(["Controller", "Pedestrian records", "With a paired delay", "Share"],
                               [[controller_label(r.controller), r.n_records, r.n_paired,
                                 pct(r.share)] for r in share.itertuples(index=False)],
                               caption="Paired delay availability (the paper: nearly all)",
-                              csv="tables/paired_share.csv"))
+                              csv="paired_share"))
     return s
 
 

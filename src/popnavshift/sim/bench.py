@@ -53,14 +53,14 @@ from .backends import BACKENDS
 from .bench_profile import profile_full_stack
 from .constants import DT
 from .controllers import CONTROLLERS
-from .controllers.builtin import BUILTIN_CONTROLLERS
+from .controllers.builtin import BUILTINS
 from .run import simulate
 from .slots import SlotProfiles, slot_profiles
 from .world import build_world
 
 TARGET_RATIO = 1.3  # full stack within this factor of bare navground, overall (issue #15)
 PART_TARGET_RATIO = 2.0  # … and within this one in every condition and every scene
-CONDITIONS: tuple[str, ...] = ("none", *BUILTIN_CONTROLLERS)  # no robot, then the built-ins
+CONDITIONS: tuple[str, ...] = ("none", *BUILTINS)  # no robot, then the built-ins
 BACKEND_NAMES: tuple[str, ...] = ("orca", "hl")
 POPULATION_SIZE = 64  # members of the synthetic population
 VIA_TOLERANCE = 0.5  # [m] bare pedestrians switch to their goal this close to the via point

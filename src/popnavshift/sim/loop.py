@@ -27,7 +27,7 @@ from .constants import (
     ROBOT_SENSING_RANGE,
 )
 from .controllers import LoopDriver
-from .controllers._rollout import sense_neighbors, sense_positions, sense_velocities
+from .controllers._geometry import sense_neighbors, sense_positions, sense_velocities
 from .pedestrians import ResponseLayer, advance
 from .quiet import NotQuiet, quiet_steps, replay_quiet, robot_touched
 from .trace import Trace
@@ -243,7 +243,7 @@ def advance_driven(step, record, pos, robot_on, robot_active, goal, active, frac
     agents, 3), then, if the loop driver decides before the next step (the robot is
     still active and the run goes on), what it senses: the robot's pose into
     ``robot_pose`` (3,) and the sensed pedestrians' positions into ``sensed`` and
-    ``sensed_ids`` (:func:`.controllers._rollout.sense_positions`). Returns
+    ``sensed_ids`` (:func:`.controllers._geometry.sense_positions`). Returns
     :func:`advance`'s four values and the number sensed, or −1 when no decision is due.
     One call instead of three: each call and each argument costs the loop time."""
     poses = record[record.shape[0] - 1]

@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 
 from .constants import DT, PED_RADIUS, ROBOT_SENSING_RANGE
-from .controllers._rollout import sense_positions
+from .controllers._geometry import sense_positions
 from .pedestrians import SENSE_RANGE, advance
 
 MARGIN = 0.3  # [m] kept free beyond the speed bound: collision pushes, float32 poses
@@ -81,7 +81,7 @@ def replay_quiet(step, poses, pos, robot_on, robot_active, goal, active, fracs, 
     whether every one of them was quiet: no exit crossed, no goal entered, no
     navground write, and (``driven``: a loop driver decides while the robot is
     active) nobody the robot senses (``sensed``, ``sensed_ids``: scratch of
-    :func:`.controllers._rollout.sense_positions`)."""
+    :func:`.controllers._geometry.sense_positions`)."""
     n = active.shape[0]
     for j in range(poses.shape[0]):
         k, s, n_speed, n_target = advance(step + j + 1, poses[j], pos, robot_on, robot_active,

@@ -11,7 +11,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ._rollout import point_segment_distance
+from ._geometry import point_segment_distance
 
 _RAY_TIME = 100.0  # [s] a constant-velocity path this long stands for the whole ray
 

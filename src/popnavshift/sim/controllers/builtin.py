@@ -2,7 +2,8 @@
 
 Importing this module fills :data:`CONTROLLERS`:
 
-* ``reactive``, ``early_yield``, ``robot_orca`` — the paper's three controllers;
+* ``BUILTINS``: ``reactive``, ``early_yield``, ``robot_orca`` (the paper's three, which
+  ``popnavshift/paper.py`` names as study data) and any controller added beside them;
 * every behaviour type registered in navground at import time under its
   navground name (``ORCA``, ``HRVO``, ``HL``, ``SocialForce``, ``Dummy``, ...),
   built by :class:`.navground_type.NavgroundType` with navground's defaults.
@@ -23,7 +24,6 @@ from collections.abc import Callable
 from functools import partial
 from typing import Any
 
-from ...tables import BUILTIN_CONTROLLERS as BUILTIN_CONTROLLERS
 from . import early_yield, reactive
 from .navground_type import NavgroundType, navground_types
 from .registry import CONTROLLERS
@@ -34,9 +34,7 @@ BUILTINS: dict[str, Callable[..., Any]] = {
     "early_yield": early_yield.EarlyYield,
     "robot_orca": RobotORCA,
 }
-# the paper's controllers, in its order: the default of a study part and the
-# baselines of ``popnavshift evaluate`` (their names are declared in tables.py)
-assert tuple(BUILTINS) == BUILTIN_CONTROLLERS
+# what the package can build, not what the paper runs (popnavshift/paper.py)
 OWN_BEHAVIORS = frozenset({reactive.NAVGROUND_NAME, early_yield.NAVGROUND_NAME})
 
 

@@ -36,8 +36,8 @@ from typing import Any, SupportsFloat, cast
 import numpy as np
 from navground import core, sim
 
+from ._geometry import neighbors_array, static_arrays
 from ._params import Param, require_two_wheels, resolve_params
-from ._rollout import neighbors_array, static_arrays
 from ._yielding import conflicting, pull_aside_point
 from .robot_orca import break_symmetry, configure_orca, first_command_workaround
 

@@ -22,14 +22,9 @@ from typing import Any, SupportsFloat, cast
 import numpy as np
 from navground import core, sim
 
+from ._geometry import neighbors_array, static_arrays
 from ._params import Param, require_two_wheels, resolve_params
-from ._rollout import (
-    REACTIVE_CFG,
-    neighbors_array,
-    reactive_command,
-    reactive_pose_command,
-    static_arrays,
-)
+from ._rollout import REACTIVE_CFG, reactive_command, reactive_pose_command
 
 MODES = ("go", "adjust", "stop")
 

@@ -1,0 +1,90 @@
+"""What a population is, as a typed value: :class:`PopulationSpec`.
+
+A study runs four kinds of population: the conditions it compares (``observed``), the
+replicates of its null designs (``swap_null``: an arm of a swap permutation of the
+matched pair; ``sized_null``: a size-matched random subset of ``mixed`` standing in for
+one condition) and the split halves of the noise floor (``half``). Their names are a
+grammar (``matched_swap7_a``, ``high_caution_sized3``, ``mixed_half_b``); this module is
+the one place it is written (:attr:`PopulationSpec.name`) and read
+(:meth:`PopulationSpec.parse`), as :class:`popnavshift.populations.perturb.ProfileSet`
+is for profile sets. The runs and pedestrians tables carry the role and the replicate
+as columns (:meth:`PopulationSpec.columns`), so a reader selects by them, not by name.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Literal
+
+#: the matched time-pressure pair: the same personas, base then deadline profile
+MATCHED_PAIR: tuple[str, str] = ("matched_base", "matched_deadline")
+#: what a swap null stands in for (its ``base``): the matched pair as a whole
+SWAP_BASE = "matched"
+#: the two arms of a swap permutation and the two halves of a split
+ARMS: tuple[str, str] = ("a", "b")
+#: the population every size-matched subset is drawn from (and its own null)
+SIZED_SOURCE = "mixed"
+
+Role = Literal["observed", "swap_null", "sized_null", "half"]
+_SWAP = re.compile(r"^matched_swap(\d+)_([ab])$")
+_SIZED = re.compile(r"^(.+)_sized(\d+)$")
+_HALF = re.compile(r"^(.+)_half_([ab])$")
+
+
+@dataclass(frozen=True)
+class PopulationSpec:
+    """A population: the condition it is, stands in for or halves (``base``; ``matched``
+    for a swap null), its ``role``, its null replicate k ≥ 1 (0 unless a null) and its arm
+    (``a``/``b`` of a swap permutation or a split; empty otherwise)."""
+
+    base: str
+    role: Role = "observed"
+    replicate: int = 0
+    arm: str = ""
+
+    @classmethod
+    def swap(cls, replicate: int, arm: str) -> PopulationSpec:
+        """Arm ``a`` or ``b`` of swap permutation ``replicate`` of the matched pair."""
+        return cls(SWAP_BASE, "swap_null", int(replicate), arm)
+
+    @classmethod
+    def sized(cls, of: str, replicate: int) -> PopulationSpec:
+        """Replicate ``replicate`` of the size-matched subset of mixed standing in for ``of``."""
+        return cls(of, "sized_null", int(replicate))
+
+    @classmethod
+    def half(cls, of: str, arm: str) -> PopulationSpec:
+        """Half ``a`` or ``b`` of a seeded random split of ``of``."""
+        return cls(of, "half", 0, arm)
+
+    @property
+    def name(self) -> str:
+        """The population's name in a study file and in the tables."""
+        if self.role == "swap_null":
+            return f"matched_swap{self.replicate}_{self.arm}"
+        if self.role == "sized_null":
+            return f"{self.base}_sized{self.replicate}"
+        if self.role == "half":
+            return f"{self.base}_half_{self.arm}"
+        return self.base
+
+    @property
+    def is_null(self) -> bool:
+        return self.role in ("swap_null", "sized_null")
+
+    @classmethod
+    def parse(cls, name: str) -> PopulationSpec:
+        """The population ``name`` declares (a replicate must be ≥ 1, else the name is an
+        ordinary one)."""
+        if (m := _SWAP.match(name)) and int(m.group(1)) >= 1:
+            return cls.swap(int(m.group(1)), m.group(2))
+        if (m := _SIZED.match(name)) and int(m.group(2)) >= 1:
+            return cls.sized(m.group(1), int(m.group(2)))
+        if m := _HALF.match(name):
+            return cls.half(m.group(1), m.group(2))
+        return cls(name)
+
+    def columns(self) -> dict[str, object]:
+        """:data:`popnavshift.tables.POPULATION_COLUMNS` of this population."""
+        return {"population_role": self.role, "null_replicate": self.replicate}
