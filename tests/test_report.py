@@ -347,3 +347,12 @@ def test_a_rebuild_leaves_no_stale_table_of_a_section_now_missing(quick, tmp_pat
 def test_a_folder_without_runs_is_an_input_error(tmp_path):
     with pytest.raises(InputError, match="runs.parquet not found"):
         build_report(tmp_path)
+
+
+def test_an_llm_respondent_is_named_with_the_endpoint_the_manifest_keeps():
+    from popnavshift.report.page import respondent_note
+
+    manifest = {"respondent": {"respondent": "openai", "model": "smollm2",
+                               "endpoint": "http://127.0.0.1:8080/v1"}}
+    kind, text = respondent_note(manifest)
+    assert kind == "p" and "smollm2" in text and "at http://127.0.0.1:8080/v1" in text

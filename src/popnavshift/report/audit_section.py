@@ -136,7 +136,7 @@ def _retest(s: Section, v: pd.DataFrame, g: pd.DataFrame | None) -> None:
                                "κ / ICC", "Within-persona variance",
                                "Between-persona variance"], cells,
                               caption=f"{_who(r)}: test–retest, {r.retest}",
-                              csv="tables/audit_retest.csv", collapsed=True))
+                              csv="audit_retest", collapsed=True))
 
 
 def _directions(s: Section, d: pd.DataFrame | None) -> None:

@@ -60,7 +60,7 @@ def respondent_note(manifest: dict[str, Any]) -> tuple[str, str]:
                         f"({model}): deterministic offline rules, NOT a language model. The "
                         "paper's personas answered through an LLM, so this run tests the "
                         "pipeline and the simulated populations, not LLM behaviour.")
-    where = f" at {r['base_url']}" if r.get("base_url") else ""
+    where = f" at {r['endpoint']}" if r.get("endpoint") else ""
     return "p", f"Probe responses come from the language model {model} ({name} respondent{where})."
 
 
