@@ -23,6 +23,7 @@ from ..episodes.specs import all_episodes
 from ..errors import ConfigError
 from ..io import write_json
 from ..pipeline import PopulationSettings, read_table
+from ..populations.build import check_members
 from ..populations.perturb import ProfileSet
 from ..progress import console
 from ..responses.probes import PROBE_SET_HASH
@@ -76,7 +77,14 @@ def population_settings(study: Study) -> PopulationSettings:
         structure=any(ProfileSet.parse(m).is_structure for m in used),
         nulls=nulls,
         null_mappings=tuple(sorted({m for part in null_parts for m in part.mappings})),
+        required=required_populations(study),
     )
+
+
+def required_populations(study: Study) -> tuple[str, ...]:
+    """Every population some part of ``study`` runs, in the order the parts name them."""
+    return tuple(dict.fromkeys(p for part in study.parts.values()
+                               for p in part.planned_populations))
 
 
 def run_stages(folder: Path, s: PopulationSettings, show_progress: bool) -> list[str]:
@@ -114,6 +122,7 @@ def run_study(
     settings = population_settings(study)
     report.stages_run = run_stages(folder, settings, show_progress)
     populations = read_table(folder / "populations.parquet", "populations")
+    check_members(populations["population"].unique(), settings.required or ())
     runs = plan_study(study, episodes)
     built = set(populations["mapping"])
     missing = sorted({r.mapping for r in runs} - built)
