@@ -128,5 +128,20 @@ def check_workers(workers: int, executor: str = "local") -> None:
 
 
 def say(text: object) -> str:
-    """``text`` (a path, a name, a server's message) made safe for rich markup."""
-    return escape(redact(str(text)))
+    """``text`` (a path, a name, a server's message) made safe for the terminal: control
+    characters shown as escapes, rich markup escaped, secrets redacted."""
+    return escape(redact(printable(str(text))))
+
+
+def printable(text: str) -> str:
+    """``text`` with every character that is not printable (ESC of an escape sequence,
+    NUL, a newline, a bidi override, a zero-width mark…) written as its code (``\\x1b``,
+    ``\\u202e``): data from a persona file or a server must never drive the terminal,
+    forge a line or hide what it shows."""
+    if text.isprintable():
+        return text
+    return "".join(ch if ch.isprintable() else _code(ord(ch)) for ch in text)
+
+
+def _code(point: int) -> str:
+    return f"\\x{point:02x}" if point < 0x100 else f"\\u{point:04x}"

@@ -11,6 +11,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
+from ..errors import InputError
 from ..progress import console
 from .app import MAX_WORKERS, app, check_workers, default_folder, folder, say
 
@@ -231,6 +232,9 @@ def run(
         ),
     ] = None,
     report: Annotated[bool, typer.Option(help="Write the analysis report at the end.")] = True,
+    force: Annotated[bool, typer.Option(
+        "--force", help="Write into --out even when it holds another study or other files.")
+                     ] = False,
 ) -> None:
     """Run every stage of a study that is not already done; resumable.
 
@@ -239,15 +243,25 @@ def run(
     out identical to an uninterrupted run.
     """
     from ..engine.lock import study_lock
-    from ..engine.runner import run_study
+    from ..engine.ownership import claim_folder
     from ..engine.study import load_study
-    from .population import print_sizes
 
     check_workers(workers, executor)
     s = load_study(study or "paper")
     target = folder(out or default_folder(s.name))
-    with study_lock(target):
-        report_ = run_study(s, target, workers=workers, executor_name=executor, address=address)
+    with study_lock(target):  # held until the report is written: one writer per folder
+        claim_folder(target, s, force)
+        _run(s, target, workers, executor, address, report)
+    console.print(f"outputs in {say(target.resolve())}")
+
+
+def _run(s, target: Path, workers: int, executor: str, address: str | None,
+         report: bool) -> None:
+    """The body of ``run``, holding the folder's lock."""
+    from ..engine.runner import run_study
+    from .population import print_sizes
+
+    report_ = run_study(s, target, workers=workers, executor_name=executor, address=address)
     if report_.nothing_to_do:
         console.print(
             f"[green]nothing to do[/]: {say(target)} is complete ({report_.planned:,} runs)"
@@ -272,7 +286,6 @@ def run(
             if report_.nothing_to_do:
                 console.print(f"rebuilding the report: {why}", highlight=False)
             _write_report(target)
-    console.print(f"outputs in {say(target.resolve())}")
 
 
 @app.command("report")
@@ -281,7 +294,12 @@ def report_cmd(
     n_boot: Annotated[int, typer.Option(min=1, help="Bootstrap resamples for the CIs.")] = 1000,
 ) -> None:
     """Write DIR/report/index.html with every table (CSV) and figure (PNG, SVG)."""
-    _write_report(study_dir, n_boot=n_boot)
+    from ..engine.lock import study_lock
+
+    if not study_dir.is_dir():
+        raise InputError(f"study folder {study_dir} not found", hint="give the --out of a run")
+    with study_lock(study_dir):  # one writer: a run or another report waits its turn
+        _write_report(study_dir, n_boot=n_boot)
 
 
 def _write_report(study_dir: Path, n_boot: int = 1000) -> None:

@@ -74,7 +74,8 @@ class PersonaSource(Strict):
     missing: Literal["require", "fill", "error"] = "require"
     codebook: str | None = None  # release only: codebook file of another layout
     sources: Annotated[tuple[str, ...] | None, Unique] = None  # release only: sources kept
-    verify_checksums: Annotated[bool, Field(strict=True)] = True  # release only: shards against manifest.json
+    #: release only: check the shards against manifest.json
+    verify_checksums: Annotated[bool, Field(strict=True)] = True
 
 
 class RespondentSpec(Strict):
@@ -161,8 +162,12 @@ class Part(Strict):
 
     @model_validator(mode="after")
     def _runs_something(self) -> Part:
-        """A sized null of ``mixed`` alone has no population to stand in for: the part
-        would plan no run at all."""
+        """Extra seed sets rank controllers, so they need two; a sized null of ``mixed``
+        alone has no population to stand in for: the part would plan no run at all."""
+        if self.seeds and len(self.controllers) < 2:
+            raise ValueError("seeds: the spread across seed sets is a spread of controller "
+                             "rankings, which needs at least 2 controllers; got "
+                             f"{list(self.controllers)}")
         if self.null_design is not None and not self.planned_populations:
             raise ValueError(f"a sized null stands in for populations other than "
                              f"{SIZED_SOURCE!r} (its own size-matched subset), got "
