@@ -76,6 +76,8 @@ def evaluate(
 
     Example: popnavshift evaluate my_pkg.controller:MyBehavior --study quick
     """
+    from ..engine.lock import study_lock
+    from ..engine.ownership import claim_folder
     from ..evaluate import BASELINES, make_card
     from ..evaluate import evaluate as run_evaluation
     from ..sim.controllers.registry import controller_id
@@ -88,15 +90,19 @@ def evaluate(
     identity = controller_id(controller, params) if params else controller
     names = BASELINES if baselines is None else tuple(
         b.strip() for b in baselines.split(",") if b.strip())
-    ev = run_evaluation(identity, s, base, out, baselines=names, workers=workers,
-                        run_check=check,
-                        log=lambda msg: console.print(say(msg), highlight=False, soft_wrap=True))
-    if ev.counts["controller_errors"]:
-        console.print(f"[yellow]warning[/]: the controller raised in "
-                      f"{ev.counts['controller_errors']} of its {ev.counts['controller_runs']} "
-                      "runs (recorded as controller_error; see the card)")
-    with console.status("writing the card…"):
-        html, png = make_card(ev, n_boot=n_boot, seed=seed, safety_threshold=safety_threshold)
+    with study_lock(base):  # the baseline study's folder gets runs and the card: one writer
+        claim_folder(base, s)
+        ev = run_evaluation(identity, s, base, out, baselines=names, workers=workers,
+                            run_check=check, log=lambda msg: console.print(
+                                say(msg), highlight=False, soft_wrap=True))
+        if ev.counts["controller_errors"]:
+            console.print(f"[yellow]warning[/]: the controller raised in "
+                          f"{ev.counts['controller_errors']} of its "
+                          f"{ev.counts['controller_runs']} runs (recorded as controller_error; "
+                          "see the card)")
+        with console.status("writing the card…"):
+            html, png = make_card(ev, n_boot=n_boot, seed=seed,
+                                  safety_threshold=safety_threshold)
     console.print(f"card → {say(html)}\nfigure → {say(png)}", soft_wrap=True, highlight=False)
 
 

@@ -46,6 +46,10 @@ ParamOpt = Annotated[
 ]
 
 
+#: what ``replay --out`` can write, checked before the run is simulated
+REPLAY_SUFFIXES = (".html", ".htm", ".svg", ".gif")
+
+
 def parse_params(items: list[str] | None) -> dict[str, Any]:
     """``["a=1", "b=true"]`` → ``{"a": 1, "b": True}`` (JSON values, else strings)."""
     out: dict[str, Any] = {}
@@ -53,6 +57,8 @@ def parse_params(items: list[str] | None) -> dict[str, Any]:
         key, sep, raw = item.partition("=")
         if not sep or not key:
             raise ConfigError(f"--param {item!r}: expected KEY=VALUE")
+        if key in out:
+            raise ConfigError(f"--param {key!r} is given twice", hint="give each KEY once")
         try:
             out[key] = json.loads(raw)
         except json.JSONDecodeError:
@@ -64,6 +70,7 @@ def _rebuild(folder: Path, episode: str, population: str, mapping: str, controll
              backend: str, seed: int, record: bool = False):
     """Simulate one run of the study in ``folder`` (its populations are built with the
     default settings if missing) by :func:`popnavshift.engine.rebuild.rebuild_run`."""
+    from ..engine.lock import study_lock
     from ..engine.rebuild import population_members, rebuild_run
     from ..engine.runner import population_settings, run_stages
     from ..engine.study import Study
@@ -78,7 +85,8 @@ def _rebuild(folder: Path, episode: str, population: str, mapping: str, controll
     if not (folder / "populations.parquet").exists():
         console.print(f"building the default populations in {say(folder)} …")
         folder.mkdir(parents=True, exist_ok=True)
-        run_stages(folder, population_settings(Study(name="default", parts={})), True)
+        with study_lock(folder):
+            run_stages(folder, population_settings(Study(name="default", parts={})), True)
     pops = read_table(folder / "populations.parquet", "populations")
     try:
         population_members(pops, mapping, population)
@@ -205,6 +213,10 @@ def replay(
     """
     from ..viz.replay import write_replay
 
+    if out.is_dir() or out.suffix.lower() not in REPLAY_SUFFIXES:
+        raise ConfigError(f"--out {out}: expected a file ending in "
+                          f"{', '.join(REPLAY_SUFFIXES)}"
+                          f"{' (it is a folder)' if out.is_dir() else ''}")
     ident = _controller(controller, parse_params(param))
     result = _rebuild(study_dir, episode, population, mapping, ident, backend, seed, record=True)
     title = f"{episode} · {population} · {controller} · {backend} → {result.run['outcome']}"

@@ -21,7 +21,7 @@ from ..prompt import SYSTEM_PROMPT, build_prompt
 from ..schema import response_json_schema
 from .identity import listing_identity
 from .readiness import NotReady
-from .retries import Reply, RetryableError, check_status
+from .retries import MAX_RETRY_AFTER, Reply, RetryableError, check_status
 from .transport import REASK, LLMRespondent, check_setting, env_key, is_http_url
 
 
@@ -55,6 +55,8 @@ class OpenAIRespondent(LLMRespondent):
         max_tokens: int | None = None,
         ready_timeout: float = 30.0,
         max_consecutive_failures: int = 5,
+        max_retry_after: float = MAX_RETRY_AFTER,
+        deadline: float | None = None,
     ) -> None:
         super().__init__(
             model=model, temperature=temperature, seed=seed, replicate=replicate,
@@ -62,6 +64,7 @@ class OpenAIRespondent(LLMRespondent):
             timeout=timeout, max_retries=max_retries, max_reasks=max_reasks,
             backoff_base=backoff_base, backoff_cap=backoff_cap, max_tokens=max_tokens,
             ready_timeout=ready_timeout, max_consecutive_failures=max_consecutive_failures,
+            max_retry_after=max_retry_after, deadline=deadline,
         )
         self.base_url = base_url
         self.api_key_env = api_key_env

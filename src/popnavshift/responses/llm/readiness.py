@@ -61,8 +61,9 @@ def wait_until_ready(check: Callable[[], None], where: str, ready_timeout: float
                     hint="check the server and base_url"
                     + ("" if exc.fatal else "; --ready-timeout sets the wait"),
                 ) from None
-            log.info("%s not ready (%s); checking again in %.2f s", where, exc.reason,
-                     min(pause, left))
+            first = pause == 0.25  # said once without -v: the run is waiting, and for what
+            log.log(logging.WARNING if first else logging.INFO,
+                    "waiting for %s (not ready: %s); up to %.0f s more", where, exc.reason, left)
             time.sleep(min(pause, left))
             pause = min(MAX_READY_POLL, pause * 2)
 
