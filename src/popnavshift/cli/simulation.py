@@ -11,7 +11,7 @@ from rich.table import Table
 
 from ..errors import ConfigError, UnknownNameError
 from ..progress import console
-from .app import app, say
+from .app import app, say, stdout
 
 StudyDir = Annotated[
     Path,
@@ -120,6 +120,7 @@ def episodes(
     from ..episodes.specs import all_cells, all_episodes, episodes_table
 
     table = episodes_table(all_episodes(seed))
+    cells = [c for c in all_cells() if scene is None or c.scene == scene]
     if scene is not None:
         scenes = sorted(table["scene"].unique())
         if scene not in scenes:
@@ -127,7 +128,7 @@ def episodes(
         table = table[table["scene"] == scene]
     if json_out:
         counts = {
-            "cells": len(all_cells()),
+            "cells": len(cells),
             "episodes": len(table),
             "by_scene": table.groupby("scene").size().to_dict(),
             "pedestrians": int(table["n_peds"].sum()),
@@ -136,7 +137,7 @@ def episodes(
         return
     # the id is what `simulate` and `replay` take: never cut it; it already names the
     # scene, width, density, speed and variant, so a narrow terminal shows it alone
-    wide = console.width >= 100
+    wide = stdout.width >= 100
     t = Table()
     t.add_column("episode (the id for simulate -e / replay -e)", no_wrap=True, min_width=32)
     heads = ("scene", "width [m]", "density [/m²]", "robot [m/s]", "variant") if wide else ()
@@ -146,9 +147,9 @@ def episodes(
     for r in table.itertuples():
         cols = (r.scene, f"{r.width:g}", f"{r.density:g}", f"{r.robot_speed:g}",
                 str(r.variant)) if wide else ()
-        t.add_row(r.id, *cols, str(r.n_peds))
-    console.print(t)
-    console.print(f"{len(all_cells())} cells, {len(table)} episodes shown")
+        t.add_row(say(r.id), *cols, str(r.n_peds))
+    stdout.print(t)
+    stdout.print(f"{len(cells)} cells, {len(table)} episodes shown")
 
 
 @app.command()

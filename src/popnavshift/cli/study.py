@@ -8,12 +8,11 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.markup import escape
 from rich.table import Table
 
 from ..errors import InputError
 from ..progress import console
-from .app import MAX_WORKERS, app, check_workers, default_folder, folder, say
+from .app import MAX_WORKERS, app, check_workers, default_folder, folder, say, stdout
 
 StudyArg = Annotated[
     str | None,
@@ -48,6 +47,8 @@ def plan(
     s = load_study(study or "paper")
     validate_study(s, all_episodes(s.seed))
     counts = count_runs(s, all_episodes(s.seed))
+    if from_dir is not None:
+        check_pilot(from_dir)
     pilot = from_dir or default_folder(s.name)
     advice = power_advice(pilot / "report" / "tables" / "evidence_power.csv")
     if json_out:
@@ -65,21 +66,21 @@ def plan(
             f"{c['no_robot_runs']:,}",
             f"{c['total']:,}",
         )
-    console.print(t)
-    console.print("'distinct' is what a run executes: parts share identical runs.")
+    stdout.print(t)
+    stdout.print("'distinct' is what a run executes: parts share identical runs.")
     if advice is None:
-        console.print(f"power: no estimate yet ({escape(str(pilot))} has no report). Run a "
+        stdout.print(f"power: no estimate yet ({say(pilot)} has no report). Run a "
                       "pilot, e.g. `popnavshift run pilot` (the matched pair and its swap null "
                       "on 2 seed sets), then `popnavshift plan "
-                      f"{escape(study or 'paper')} --from study-pilot`.", highlight=False)
+                      f"{say(study or 'paper')} --from study-pilot`.", highlight=False)
         return
     p = Table("comparison", "metric", "rule", "excess", "verdict now", "what would decide it",
-              title=f"power (from {escape(str(pilot))})")
+              title=f"power (from {say(pilot)})")
     for r in advice.itertuples(index=False):
-        p.add_row(r.comparison, r.metric, r.rule, f"{100 * r.excess:+.1f} pp", r.verdict,
-                  advice_text(r))
-    console.print(p)
-    console.print("what would decide it: the fewest seed sets and null replicates that decide the "
+        p.add_row(say(r.comparison), say(r.metric), say(r.rule), f"{100 * r.excess:+.1f} pp",
+                  say(r.verdict), say(advice_text(r)))
+    stdout.print(p)
+    stdout.print("what would decide it: the fewest seed sets and null replicates that decide the "
                   "verdict with 80% power if the excess stays at its estimate, with the null's "
                   "spread falling with seed sets as the pilot's own replicate curve measured; "
                   "add them as `seeds:` and `replicates:` to the parts that run the comparison "
@@ -105,8 +106,33 @@ def power_advice(path: Path):
         return None
     cols = ["comparison", "metric", "rule", "excess", "verdict", "limit", "seed_sets_needed",
             "nulls_needed", "runs_needed", "minutes_needed"]
-    table = pd.read_csv(path)
-    return table[cols] if set(cols) <= set(table.columns) else None
+    numbers = cols[3:4] + cols[6:]
+    try:
+        table = pd.read_csv(path)
+    except (ValueError, UnicodeDecodeError) as exc:  # pandas' ParserError is a ValueError
+        raise InputError(f"{path} is damaged (not a readable CSV: {exc})",
+                         hint="write the report again: popnavshift report FOLDER") from None
+    if not set(cols) <= set(table.columns):
+        return None
+    table = table[cols]
+    if not all(pd.api.types.is_numeric_dtype(table[c]) for c in numbers):
+        raise InputError(f"{path} is damaged (a count or rate that is not a number)",
+                         hint="write the report again: popnavshift report FOLDER")
+    return table
+
+
+def check_pilot(path: Path) -> None:
+    """``plan --from``: a folder that a study ran in, or one clear line."""
+    from ..engine.ownership import folder_owner
+
+    if not path.exists():
+        raise InputError(f"--from {path}: no such folder", hint="give the --out of a pilot run")
+    if not path.is_dir():
+        raise InputError(f"--from {path} is a file, not a study folder",
+                         hint="give the --out of a pilot run")
+    if folder_owner(path) is None:
+        raise InputError(f"--from {path} holds no PopNavShift study",
+                         hint="give the --out of a pilot run, e.g. study-pilot")
 
 
 @app.command()

@@ -20,7 +20,7 @@ from typing import Any
 import pandas as pd
 
 from ..episodes.specs import all_episodes
-from ..errors import ConfigError
+from ..errors import ConfigError, InputError
 from ..io import write_json
 from ..pipeline import PopulationSettings, read_table
 from ..populations.build import check_members
@@ -33,7 +33,7 @@ from .executors import execute
 from .plan import batches, count_runs, plan_study
 from .stages import STAGES, batch_inputs, stage_stamps
 from .stamps import code_stamps
-from .store import RunStore, read_stamps, readable_parquet
+from .store import RunStore, read_manifest, read_stamps, readable_parquet
 from .study import Study
 from .validate import validate_study
 from .worker import Context
@@ -140,7 +140,7 @@ def run_study(
     todo = [b for b in all_batches if not store.is_done(b)]
     report.planned = len(runs)
     report.reused = len(runs) - sum(len(b.runs) for b in todo)
-    complete = (folder / "manifest.json").exists() and not all_batches
+    complete = _manifest_intact(folder) and not all_batches
     if not todo and not report.stages_run and complete and _holds_exactly(folder, runs):
         report.seconds = time.perf_counter() - started
         return report
@@ -166,6 +166,15 @@ def run_study(
         count_runs(study, episodes),
     )
     return report
+
+
+def _manifest_intact(folder: Path) -> bool:
+    """Whether the manifest reads back; a damaged one is written again (not reported as
+    'nothing to do' while `report` refuses it)."""
+    try:
+        return read_manifest(folder) is not None
+    except InputError:
+        return False
 
 
 def _holds_exactly(folder: Path, runs: list) -> bool:
