@@ -132,7 +132,8 @@ def _check_enough(table: pd.DataFrame, n: int | None, path: Path, prov: dict) ->
             f"{path}: {n or 'at least one'} persona record(s) requested but only {len(table)} "
             f"usable ({prov['records_scanned']} scanned, "
             f"{prov['records_dropped_missing']} dropped for missing required fields)",
-            hint="lower n, pass n=None to take every usable record, or use missing='fill'",
+            hint="lower --n (personas.n in a study file), or fill missing fields with "
+                 "--missing fill (personas.missing: fill)",
         )
 
 
