@@ -99,7 +99,7 @@ class EpisodeSelection(Strict):
     def _known_scenes(cls, v):
         for s in v or ():
             if s not in SCENES:
-                raise UnknownNameError("scene", s, SCENES)
+                raise ValueError(str(UnknownNameError("scene", s, SCENES)))
         return v
 
 
@@ -157,7 +157,9 @@ class Part(Strict):
     def _known_populations(cls, v):
         for p in v:
             if not is_known(p):
-                raise UnknownNameError("population", p, POPULATIONS + SPLIT_HALVES)
+                # a ValueError: pydantic adds where it was (parts.main.populations.0)
+                raise ValueError(str(UnknownNameError("population", p,
+                                                      POPULATIONS + SPLIT_HALVES)))
         return v
 
     @model_validator(mode="after")
@@ -185,7 +187,7 @@ class Part(Strict):
         pops = data.get("populations", MATCHED_PAIR)
         if not isinstance(pops, list | tuple) or sorted(map(str, pops)) != sorted(MATCHED_PAIR):
             raise ValueError(f"a swap null stands in for the matched pair: populations "
-                             f"{list(MATCHED_PAIR)} (the default), got {list(pops)}")
+                             f"{list(MATCHED_PAIR)} (the default), got {pops!r}")
         return {**data, "populations": tuple(MATCHED_PAIR)}
 
 

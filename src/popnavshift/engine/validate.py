@@ -38,7 +38,17 @@ GRID_FIELDS = {
 
 
 def validate_study(study: Study, episodes: Iterable) -> None:
-    """Raise ConfigError for the first value of ``study`` that cannot run."""
+    """Raise ConfigError for the first value of ``study`` that cannot run; its message
+    starts with the study's file (or name)."""
+    try:
+        _validate(study, episodes)
+    except ConfigError as err:
+        if err.message.startswith(study.where):
+            raise
+        raise ConfigError(f"{study.where}: {err.message}", hint=err.hint) from None
+
+
+def _validate(study: Study, episodes: Iterable) -> None:
     if not study.parts:
         raise ConfigError(f"{study.where}: parts: no part, so nothing would run",
                           hint="add a part, e.g. `parts: {main: {populations: [mixed]}}`")
