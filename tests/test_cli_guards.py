@@ -240,9 +240,9 @@ def test_a_long_retry_after_is_capped_and_a_deadline_holds(caplog, monkeypatch):
 
     clock = iter(range(0, 10_000, 61))  # each nap of 60 s moves the clock
     monkeypatch.setattr(retries.time, "monotonic", lambda: float(next(clock)))
-    with caplog.at_level(logging.WARNING, "popnavshift"):
-        with pytest.raises(retries.TransportFailure, match="deadline of 200 s"):
-            retries.send_with_retries(limited, policy, retries.RateLimiter(None))
+    with (caplog.at_level(logging.WARNING, "popnavshift"),
+          pytest.raises(retries.TransportFailure, match="deadline of 200 s")):
+        retries.send_with_retries(limited, policy, retries.RateLimiter(None))
     assert naps and max(naps) == 60.0 and len(naps) < 5
     assert "HTTP 429" in caplog.text and "retry 1/50 in 60.00 s" in caplog.text
 
