@@ -260,6 +260,17 @@ def test_probe_stops_at_its_deadline_and_says_what_it_waits_for(tmp_path):
     assert "deadline of 8 s" in proc.stderr and "Traceback" not in proc.stderr
 
 
+def test_a_hanging_server_is_announced_within_seconds(tmp_path):
+    assert cli("personas", "--n", "4", "--out", str(tmp_path)).returncode == 0
+    with serve() as server:
+        server.enqueue_models(Reply(delay=7))  # its model list hangs past the notice
+        proc = cli("probe", "--respondent", "openai", "--base-url", server.openai_url,
+                   "--model", "m", "--api-key-env", "none", "--matched-n", "1",
+                   "--out", str(tmp_path), "--timeout", "6")
+    assert "waiting for openai server" in proc.stderr and "no answer after 5 s" in proc.stderr
+    assert proc.returncode == 0, proc.stderr  # it answers in the end: the run goes on
+
+
 # ---- 6. terminal escapes: data never drives the terminal -------------------------------
 @pytest.mark.parametrize("bad_id", [f"p{ESC}1", "p\x00x", "   "])
 def test_persona_ids_that_are_not_printable_text_are_refused(tmp_path, random_personas, bad_id):

@@ -20,7 +20,8 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 from ...errors import TransportError
@@ -29,6 +30,8 @@ log = logging.getLogger("popnavshift.responses.llm")
 
 #: longest pause between two readiness checks (s)
 MAX_READY_POLL = 2.0
+#: a readiness check still unanswered after this long (s) is said without -v
+WAIT_NOTICE = 5.0
 
 
 class NotReady(Exception):
@@ -38,6 +41,20 @@ class NotReady(Exception):
         super().__init__(reason)
         self.reason = reason
         self.fatal = fatal  # retrying cannot help (a rejected key)
+
+
+@contextmanager
+def announced(where: str) -> Iterator[None]:
+    """Say (without -v) what the run waits for once a call has gone unanswered for
+    :data:`WAIT_NOTICE` s: a hanging server otherwise says nothing for minutes."""
+    notice = threading.Timer(WAIT_NOTICE, log.warning,
+                             ("waiting for %s: no answer after %.0f s", where, WAIT_NOTICE))
+    notice.daemon = True
+    notice.start()
+    try:
+        yield
+    finally:
+        notice.cancel()
 
 
 def wait_until_ready(check: Callable[[], None], where: str, ready_timeout: float) -> None:
@@ -50,7 +67,8 @@ def wait_until_ready(check: Callable[[], None], where: str, ready_timeout: float
     pause = 0.25
     while True:
         try:
-            check()
+            with announced(where):
+                check()
             return
         except NotReady as exc:
             left = deadline - time.monotonic()

@@ -45,7 +45,7 @@ from ..respondent import Answer, ProbeRequest, Progress, Respondent
 from ..schema import parse_answer
 from .cache import CacheStats, ResponseCache, request_key
 from .identity import served_identity
-from .readiness import Breaker, wait_until_ready
+from .readiness import Breaker, announced, wait_until_ready
 from .retries import (
     MAX_RETRY_AFTER,
     RateLimiter,
@@ -210,8 +210,9 @@ class LLMRespondent(Respondent):
         cache = ResponseCache(self.cache_path) if self.cache_path is not None else None
         self.cache_stats = None
         try:
-            self._served_identity = served_identity(self._ask_identity, cache, self.endpoint,
-                                                    self.model, self.name)
+            with announced(f"{self.name} server {self.endpoint} (its model list)"):
+                self._served_identity = served_identity(self._ask_identity, cache,
+                                                        self.endpoint, self.model, self.name)
             keys = [self._key(self._body(r.persona, ())) for r in requests]
             for i, (req, key) in enumerate(zip(requests, keys, strict=True)):
                 if key in todo:
