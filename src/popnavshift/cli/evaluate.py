@@ -137,6 +137,8 @@ def compare(
 
     Example: popnavshift compare reactive early_yield robot_orca HRVO
     """
+    from ..engine.lock import study_lock
+    from ..engine.ownership import claim_folder
     from ..errors import ConfigError
     from ..evaluate.compare import compare as run_compare
     from ..evaluate.compare_page import write_comparison
@@ -148,11 +150,13 @@ def compare(
                           hint=f"e.g. --out {out.with_suffix('.html')}")
     s, default_dir = _baseline_study(study)
     base = folder(study_dir or default_dir)
-    comparison = run_compare(controllers, s, base, workers=workers, n_boot=n_boot, seed=seed,
-                             log=lambda msg: console.print(say(msg), highlight=False,
-                                                           soft_wrap=True))
-    with console.status("writing the comparison…"):
-        paths = write_comparison(comparison, out or base / "compare" / "compare.html")
+    with study_lock(base):  # cards are evaluated into the baseline folder: one writer
+        claim_folder(base, s)
+        comparison = run_compare(controllers, s, base, workers=workers, n_boot=n_boot,
+                                 seed=seed, log=lambda msg: console.print(
+                                     say(msg), highlight=False, soft_wrap=True))
+        with console.status("writing the comparison…"):
+            paths = write_comparison(comparison, out or base / "compare" / "compare.html")
     console.print(f"page → {say(paths['html'])}\ntable → {say(paths['csv'])} "
                   f"(also {paths['md'].suffix} and {paths['tex'].suffix})", soft_wrap=True,
                   highlight=False)
