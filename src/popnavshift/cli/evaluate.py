@@ -168,13 +168,12 @@ MADE_STUDY = Path("study")  # where `make run` writes the paper study
 def _baseline_study(name: str | None):
     """The study to evaluate against and its default folder: the one named, else the
     study `make run` left in ./study (its manifest holds the configuration), else quick."""
-    import json
-
+    from ..engine.store import read_manifest
     from ..engine.study import load_study, study_from_dict
 
     manifest = MADE_STUDY / "manifest.json"
     if name is None and manifest.exists():
-        cfg = json.loads(manifest.read_text("utf-8")).get("study_config")
+        cfg = (read_manifest(MADE_STUDY) or {}).get("study_config")
         if cfg:
             return study_from_dict(cfg, str(manifest)), MADE_STUDY
     s = load_study(name or "quick")
