@@ -63,7 +63,9 @@ def wait_until_ready(check: Callable[[], None], where: str, ready_timeout: float
     ``check`` raises :class:`NotReady` while the server is not ready. Raises
     TransportError naming ``where`` when the wait runs out or the failure is final.
     """
-    deadline = time.monotonic() + ready_timeout
+    started = time.monotonic()
+    deadline = started + ready_timeout
+    told = False  # the wait was said without -v (once it grew long)
     pause = 0.25
     while True:
         try:
@@ -79,9 +81,10 @@ def wait_until_ready(check: Callable[[], None], where: str, ready_timeout: float
                     hint="check the server and base_url"
                     + ("" if exc.fatal else "; --ready-timeout sets the wait"),
                 ) from None
-            first = pause == 0.25  # said once without -v: the run is waiting, and for what
-            log.log(logging.WARNING if first else logging.INFO,
+            tell = not told and time.monotonic() - started >= WAIT_NOTICE
+            log.log(logging.WARNING if tell else logging.INFO,
                     "waiting for %s (not ready: %s); up to %.0f s more", where, exc.reason, left)
+            told = told or tell
             time.sleep(min(pause, left))
             pause = min(MAX_READY_POLL, pause * 2)
 

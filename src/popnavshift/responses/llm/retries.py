@@ -164,10 +164,11 @@ def send_with_retries(
                        else "(run stopped)" if stopped()
                        else f"(deadline of {policy.deadline:g} s reached after {spent:.0f} s)")
                 raise TransportFailure(f"{exc.reason} {why}", calls=calls) from None
-            slow = wait >= WAIT_NOTICE or time.monotonic() - sent >= WAIT_NOTICE
-            log.log(logging.WARNING if slow else logging.INFO,
-                    "%s after %.0f s; retry %d/%d in %.2f s", exc.reason,
-                    time.monotonic() - sent, calls, policy.max_retries, wait)
+            took = time.monotonic() - sent
+            slow = wait >= WAIT_NOTICE or took >= WAIT_NOTICE
+            log.log(logging.WARNING if slow else logging.INFO, "%s; retry %d/%d in %.2f s%s",
+                    exc.reason, calls, policy.max_retries, wait,
+                    f" (the call took {took:.0f} s)" if took >= WAIT_NOTICE else "")
             time.sleep(wait)
         except FinalError as exc:
             raise TransportFailure(exc.reason, calls=calls, fatal=exc.fatal) from None
