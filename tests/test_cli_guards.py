@@ -49,7 +49,7 @@ STUDY_MISTAKES = [
     ({"part": "    null_design: {kind: sized}\n"}, "a sized null stands in for populations"),
     ({"top": "respondent: {name: openai, options: {model: m, temperature: .nan}}\n"},
      "respondent.options.temperature: nan is not a finite number"),
-    ({"part": "    seeds: [1]\n"}, "needs at least 2 controllers"),
+    ({"part": "    seeds: [1]\n"}, "parts.main.seeds: the report ranks controllers"),
     ({"controllers": "[]"}, "parts.main.controllers"),
     ({"populations": "[mixed, mixed]"}, "'mixed' is listed twice"),
     ({"controllers": "[reactive, reactive]"}, "'reactive' is listed twice"),
@@ -72,6 +72,12 @@ def test_run_refuses_it_before_any_stage(tmp_path, change, needle):
     assert_one_line_error(cli("run", str(write_study(tmp_path, **change)), "--out", str(out)),
                           needle)
     assert not (out / "personas.parquet").exists()
+
+
+def test_a_study_only_its_report_cannot_take_runs_with_no_report(tmp_path):
+    path = write_study(tmp_path, part="    seeds: [1]\n")
+    assert run_cli("plan", str(path), "--no-report").returncode == 0
+    assert_one_line_error(run_cli("plan", str(path)), "--no-report")
 
 
 def test_a_missing_executor_package_fails_before_any_stage(monkeypatch, tmp_path):
@@ -312,6 +318,12 @@ def test_stage_stamps_of_the_wrong_shape_are_one_line(study):
     (study / "stages.json").write_text('{"runs": 5}')
     proc = run_cli("run", str(tiny_study(study.parent)), "--out", str(study), "--no-report")
     assert_one_line_error(proc, "stages.json is damaged", "delete it")
+
+
+def test_show_prompt_on_a_damaged_responses_table_is_one_line(study):
+    (study / "responses.parquet").write_bytes(b"not parquet")
+    assert_one_line_error(run_cli("show-prompt", "syn-000001", "--study", str(study)),
+                          "responses.parquet", "not a readable Parquet file")
 
 
 def test_describe_a_damaged_table_is_one_line(study):

@@ -62,7 +62,9 @@ def _answer(study: Path, persona_id: str, variant: str) -> str:
     path = study / "responses.parquet"
     if not path.exists():
         return ""
-    rows = pd.read_parquet(path)
+    from ..pipeline import read_table  # a damaged table is one line
+
+    rows = read_table(path, "responses")
     row = rows[(rows["persona_id"] == persona_id) & (rows["variant"] == variant)]
     if row.empty:
         return ""
@@ -92,15 +94,17 @@ def _persona(personas: pd.DataFrame, persona_id: str, where: Path) -> dict:
 
 def _asked(study: Path, persona_id: str) -> dict[str, str]:
     """Variant → "respondent (model)" (or "invalid answer") per variant asked of the persona."""
+    from ..pipeline import read_table
+
     asked: dict[str, str] = {}
     path = study / "responses.parquet"
     if path.exists():
-        rows = pd.read_parquet(path, columns=["persona_id", "variant", "respondent", "model"])
+        rows = read_table(path, "responses")
         for r in rows[rows["persona_id"] == persona_id].itertuples():
             asked[str(r.variant)] = f"respondent {r.respondent} ({r.model})"
     invalid = study / "responses_invalid.parquet"
     if invalid.exists():
-        rows = pd.read_parquet(invalid, columns=["persona_id", "variant", "error"])
+        rows = read_table(invalid, "responses_invalid")
         for r in rows[rows["persona_id"] == persona_id].itertuples():
             asked[str(r.variant)] = f"invalid answer: {r.error}"
     return asked

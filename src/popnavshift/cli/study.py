@@ -29,6 +29,8 @@ def plan(
         typer.Option("--from", help="A finished study folder (a pilot) whose report gives the "
                      "power advice (default: the study's own output folder, if it has one)."),
     ] = None,
+    report: Annotated[bool, typer.Option(
+        help="Check that the report can be written too, as `run` does by default.")] = True,
 ) -> None:
     """Print the run counts of a study, per part (nothing is run), and what would decide
     each undecided headline rate (more seed sets, more null replicates, or nothing).
@@ -45,7 +47,7 @@ def plan(
     from ..episodes.specs import all_episodes
 
     s = load_study(study or "paper")
-    validate_study(s, all_episodes(s.seed))
+    validate_study(s, all_episodes(s.seed), report=report)
     counts = count_runs(s, all_episodes(s.seed))
     if from_dir is not None:
         check_pilot(from_dir)
@@ -271,9 +273,12 @@ def run(
     from ..engine.lock import study_lock
     from ..engine.ownership import claim_folder
     from ..engine.study import load_study
+    from ..engine.validate import validate_study
+    from ..episodes.specs import all_episodes
 
     check_workers(workers, executor)
     s = load_study(study or "paper")
+    validate_study(s, all_episodes(s.seed), report=report)  # the one validation, as plan's
     target = folder(out or default_folder(s.name))
     with study_lock(target):  # held until the report is written: one writer per folder
         claim_folder(target, s, force)

@@ -164,12 +164,8 @@ class Part(Strict):
 
     @model_validator(mode="after")
     def _runs_something(self) -> Part:
-        """Extra seed sets rank controllers, so they need two; a sized null of ``mixed``
-        alone has no population to stand in for: the part would plan no run at all."""
-        if self.seeds and len(self.controllers) < 2:
-            raise ValueError("seeds: the spread across seed sets is a spread of controller "
-                             "rankings, which needs at least 2 controllers; got "
-                             f"{list(self.controllers)}")
+        """A sized null of ``mixed`` alone has no population to stand in for: the part
+        would plan no run at all."""
         if self.null_design is not None and not self.planned_populations:
             raise ValueError(f"a sized null stands in for populations other than "
                              f"{SIZED_SOURCE!r} (its own size-matched subset), got "

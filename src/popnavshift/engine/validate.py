@@ -37,11 +37,14 @@ GRID_FIELDS = {
 }
 
 
-def validate_study(study: Study, episodes: Iterable) -> None:
-    """Raise ConfigError for the first value of ``study`` that cannot run; its message
-    starts with the study's file (or name)."""
+def validate_study(study: Study, episodes: Iterable, report: bool = False) -> None:
+    """Raise ConfigError for the first value of ``study`` that cannot run (with
+    ``report``: or whose report cannot be written); its message starts with the study's
+    file (or name)."""
     try:
         _validate(study, episodes)
+        if report:
+            _check_reportable(study)
     except ConfigError as err:
         if err.message.startswith(study.where):
             raise
@@ -78,6 +81,17 @@ def check_grid_values(selection: EpisodeSelection, episodes: Sequence, where: st
                     f"{', '.join(repr(k) for k in known)}",
                     hint=f"did you mean {closest!r}?",
                 )
+
+
+def _check_reportable(study: Study) -> None:
+    """The report ranks controllers on every seed set of a part: a part with extra
+    seeds and one controller would run, then fail in the report."""
+    for name, part in study.parts.items():
+        if part.seeds and len(part.controllers) < 2:
+            raise ConfigError(
+                f"parts.{name}.seeds: the report ranks controllers on each seed set, which "
+                f"needs at least 2 controllers; got {list(part.controllers)}",
+                hint="add a controller, or run with --no-report")
 
 
 def _check_names(study: Study) -> None:
