@@ -129,6 +129,19 @@ def test_run_refuses_a_folder_that_is_not_a_study(tmp_path):
     assert sorted(p.name for p in home.iterdir() if p.name != ".lock") == ["notes.txt"]
 
 
+def test_a_command_without_force_does_not_offer_it(tmp_path):
+    from popnavshift.engine.ownership import claim_folder
+    from popnavshift.engine.study import load_study
+    from popnavshift.errors import ConfigError
+
+    (tmp_path / "notes.txt").write_text("mine")
+    with pytest.raises(ConfigError) as err:
+        claim_folder(tmp_path, load_study("quick"), force=None, option="--study-dir")
+    assert "--study-dir" in str(err.value) and "--force" not in str(err.value)
+    claim_folder(tmp_path, load_study("quick"), force=True)  # forced: marked as quick's
+    assert json.loads((tmp_path / "study.json").read_text())["study"] == "quick"
+
+
 def test_report_takes_the_folder_lock(study):
     from popnavshift.engine.lock import study_lock
 

@@ -91,7 +91,7 @@ def evaluate(
     names = BASELINES if baselines is None else tuple(
         b.strip() for b in baselines.split(",") if b.strip())
     with study_lock(base):  # the baseline study's folder gets runs and the card: one writer
-        claim_folder(base, s)
+        claim_folder(base, s, force=None, option="--study-dir")
         ev = run_evaluation(identity, s, base, out, baselines=names, workers=workers,
                             run_check=check, log=lambda msg: console.print(
                                 say(msg), highlight=False, soft_wrap=True))
@@ -151,7 +151,7 @@ def compare(
     s, default_dir = _baseline_study(study)
     base = folder(study_dir or default_dir)
     with study_lock(base):  # cards are evaluated into the baseline folder: one writer
-        claim_folder(base, s)
+        claim_folder(base, s, force=None, option="--study-dir")
         comparison = run_compare(controllers, s, base, workers=workers, n_boot=n_boot,
                                  seed=seed, log=lambda msg: console.print(
                                      say(msg), highlight=False, soft_wrap=True))

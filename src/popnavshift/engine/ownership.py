@@ -38,17 +38,19 @@ def folder_owner(folder: Path) -> str | None:
     return "" if any((folder / name).exists() for name in OURS) else None
 
 
-def claim_folder(folder: Path, study: Study, force: bool = False) -> None:
-    """Refuse ``folder`` when it belongs to another study or to nothing of ours (unless
-    ``force``), then mark it as ``study``'s and clean its leftover temporary files.
-    Call it holding the folder's lock."""
+def claim_folder(folder: Path, study: Study, force: bool | None = False,
+                 option: str = "--out") -> None:
+    """Refuse ``folder`` (given as ``option``) when it belongs to another study or to
+    nothing of ours (unless ``force``; None: the command has no --force), then mark it
+    as ``study``'s and clean its leftover temporary files. Call it holding the lock."""
     owner = folder_owner(folder)
-    hint = "choose another --out, or add --force to write into it anyway"
+    hint = f"choose another {option}" + (
+        "" if force is None else ", or add --force to write into it anyway")
     if not force and owner not in (None, "", study.name):
-        raise ConfigError(f"--out {folder} holds the results of study {owner!r}, not "
+        raise ConfigError(f"{option} {folder} holds the results of study {owner!r}, not "
                           f"{study.name!r}; running here would replace its tables", hint=hint)
     if not force and owner is None and _has_files(folder):
-        raise ConfigError(f"--out {folder} is not empty and holds no PopNavShift study",
+        raise ConfigError(f"{option} {folder} is not empty and holds no PopNavShift study",
                           hint=hint)
     write_json({"study": study.name, "config_hash": study.config_hash()}, folder / MARK)
     clean_leftovers(folder)
