@@ -71,7 +71,7 @@ def test_episodes_lists_the_grid():
                           capture_output=True, text=True, timeout=120,
                           env={**os.environ, "COLUMNS": "120"})
     assert proc.returncode == 0, proc.stderr
-    assert "[/m²]" in proc.stderr and "episodes shown" in proc.stderr
+    assert "[/m²]" in proc.stdout and "episodes shown" in proc.stdout  # the output: stdout
 
 
 @pytest.mark.parametrize("name", ["data[v2].csv", "[/x].csv"])

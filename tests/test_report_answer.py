@@ -150,11 +150,14 @@ def test_plan_prints_the_power_advice_of_a_pilot(study, tmp_path):
                           str(study)], capture_output=True, text=True, timeout=120,
                          env={**os.environ, "COLUMNS": "200"})
     assert out.returncode == 0, out.stderr
-    text = " ".join((out.stdout + out.stderr).split())  # the console writes to stderr
+    text = " ".join(out.stdout.split())  # the tables are the output: stdout
     assert "power (from" in text and "matched" in text and "80% power" in text
     assert "what would decide it" in text
+    pilot = tmp_path / "pilot"  # a study folder without a report yet
+    pilot.mkdir()
+    (pilot / "stages.json").write_text("{}")
     bare = subprocess.run([sys.executable, "-m", "popnavshift", "plan", str(cfg), "--from",
-                           str(tmp_path)], capture_output=True, text=True, timeout=120)
+                           str(pilot)], capture_output=True, text=True, timeout=120)
     assert bare.returncode == 0 and "no estimate yet" in bare.stdout + bare.stderr
 
 

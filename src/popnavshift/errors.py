@@ -44,7 +44,8 @@ class UnknownNameError(ConfigError):
         listed = ", ".join(known) if len(known) <= 12 else (
             f"{', '.join(known[:4])}, … ({len(known)} in all)"
         )
-        super().__init__(f"unknown {kind} {name!r}; known: {listed}", hint=hint)
+        super().__init__(f"unknown {kind} {name!r}{code_points(name)}; known: {listed}",
+                         hint=hint)
 
 
 class RespondentError(PopNavShiftError):
@@ -57,6 +58,15 @@ class TransportError(RespondentError):
 
 class MissingKeyError(RespondentError):
     """An API key environment variable is not set."""
+
+
+def code_points(text: str) -> str:
+    """`` (U+0456 at 2)`` for the first non-ASCII characters of ``text``: a homoglyph
+    (Cyrillic і for Latin i) looks like the known name it fails to match."""
+    odd = [(i, ch) for i, ch in enumerate(text) if not ch.isascii()][:3]
+    if not odd:
+        return ""
+    return " (" + ", ".join(f"U+{ord(ch):04X} at {i + 1}" for i, ch in odd) + ")"
 
 
 def _rebuild(cls: type[PopNavShiftError], message: str, hint: str | None) -> PopNavShiftError:

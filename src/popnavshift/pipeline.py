@@ -70,6 +70,10 @@ class PopulationSettings:
     #: profile sets they are run with (their members get only those profiles)
     nulls: tuple[str, ...] = ()
     null_mappings: tuple[str, ...] = ()
+    #: the populations the study runs: one of them empty is an error, any other empty
+    #: one is left out (None: every population is required). Not in the stage's stamp:
+    #: membership does not depend on it, and the runner checks it on every run.
+    required: tuple[str, ...] | None = None
 
     @property
     def respondent2_label(self) -> str | None:
@@ -192,7 +196,7 @@ def run_populations(folder: Path, s: PopulationSettings) -> pd.DataFrame:
     matched = matched_ids(personas, s.matched_n, s.seed)
     members = membership(
         personas, responses, profiles[profiles["mapping"] == "A"], matched,
-        populations=POPULATIONS + SPLIT_HALVES + s.nulls, seed=s.seed,
+        populations=POPULATIONS + SPLIT_HALVES + s.nulls, seed=s.seed, required=s.required,
     )
     is_null = members["population"].isin(s.nulls)
     tables = []

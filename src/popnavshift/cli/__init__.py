@@ -1,9 +1,11 @@
 """The ``popnavshift`` command line: one dispatcher, one subcommand per stage.
 
-User errors (:class:`PopNavShiftError`) and usage errors (a bad option value, a
-missing argument) become one red line and exit code 2; ``--verbose`` adds the
-traceback of a user error and shows the log (retries, re-asks). Every text from
-the user or a server is escaped before rich renders it, and redacted
+User errors (:class:`PopNavShiftError`), usage errors (a bad option value, a
+missing argument) and the operating system's refusals (a full disk, permissions, a
+path that is missing or of the wrong kind) become one red line and exit code 2;
+``--verbose`` adds the traceback and shows the log (retries, re-asks). Every text from
+the user or a server is escaped before rich renders it (control characters as their
+codes, :func:`.app.printable`), and redacted
 (:mod:`popnavshift.redact`). Everything else is a bug and shows a traceback.
 Commands live in :mod:`.population` (personas → populations), :mod:`.simulation`
 (episodes, simulate, replay, bench), :mod:`.study` (plan, run, report) and :mod:`.audit`
@@ -12,6 +14,8 @@ Commands live in :mod:`.population` (personas → populations), :mod:`.simulatio
 
 from __future__ import annotations
 
+import errno
+import sqlite3
 import sys
 from typing import NoReturn
 
@@ -40,6 +44,10 @@ def main() -> None:
         if STATE["verbose"]:
             console.print_exception()
         fail(str(exc))
+    except (OSError, sqlite3.OperationalError) as exc:  # the machine said no: not a bug
+        if STATE["verbose"]:
+            console.print_exception()
+        fail(os_error_line(exc))
     except _INTERRUPTS:
         result = 130
     except _USAGE_ERRORS as exc:
@@ -58,6 +66,33 @@ def fail(message: str) -> NoReturn:
     one_line = " ".join(message.split())
     console.print(f"[bold red]error:[/] {say(one_line)}", highlight=False, soft_wrap=True)
     sys.exit(2)
+
+
+#: what to do about the usual refusals of the operating system
+_OS_HINTS = {
+    errno.ENOSPC: "free some space or choose another --out",
+    errno.EDQUOT: "free some space or choose another --out",
+    errno.EACCES: "check the permissions, or choose another folder",
+    errno.EPERM: "check the permissions, or choose another folder",
+    errno.EROFS: "the file system is read-only: choose another folder",
+    errno.ENOENT: "check the path",
+    errno.EISDIR: "give a file, not a folder",
+    errno.ENOTDIR: "a part of the path is a file, not a folder",
+    errno.ENAMETOOLONG: "use a shorter name",
+}
+
+
+def os_error_line(exc: BaseException) -> str:
+    """One line for an error of the operating system (full disk, permissions, a missing or
+    wrong kind of path, a locked or full SQLite file): what failed, where, and a hint."""
+    if isinstance(exc, sqlite3.OperationalError):
+        return f"the response cache failed: {exc} (check the free space and permissions)"
+    assert isinstance(exc, OSError)
+    what = exc.strerror or type(exc).__name__
+    where = " → ".join(str(f) for f in (exc.filename, exc.filename2) if f is not None)
+    hint = _OS_HINTS.get(exc.errno or 0)
+    text = f"{where}: {what}" if where else f"{what} ({exc})" if str(exc) != what else what
+    return f"{text} ({hint})" if hint else text
 
 
 def _usage_errors() -> tuple[tuple[type[BaseException], ...], tuple[type[BaseException], ...]]:

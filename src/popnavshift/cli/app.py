@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
+from rich.console import Console
 from rich.markup import escape
 
 from ..errors import ConfigError
@@ -32,6 +33,9 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 STATE: dict[str, Any] = {"verbose": False}
+#: stdout, for a command whose text is its output (a table of counts, a prompt): the
+#: console of progress and messages writes to stderr
+stdout = Console(soft_wrap=True, highlight=False)
 
 Out = Annotated[Path, typer.Option("--out", "-o", help="Study folder to write into.")]
 #: more worker processes than this is a typo, not a machine (each holds ~300 MB)
@@ -128,5 +132,23 @@ def check_workers(workers: int, executor: str = "local") -> None:
 
 
 def say(text: object) -> str:
-    """``text`` (a path, a name, a server's message) made safe for rich markup."""
-    return escape(redact(str(text)))
+    """``text`` (a path, a name, a server's message) made safe for the terminal: control
+    characters shown as escapes, rich markup escaped, secrets redacted."""
+    return escape(redact(printable(str(text))))
+
+
+def printable(text: str, lines: bool = False) -> str:
+    """``text`` with every character that is not printable (ESC of an escape sequence,
+    NUL, a newline, a bidi override, a zero-width mark…) written as its code (``\\x1b``,
+    ``\\u202e``): data from a persona file or a server must never drive the terminal,
+    forge a line or hide what it shows. ``lines`` keeps the newlines of a multi-line
+    text (a prompt)."""
+    if text.isprintable():
+        return text
+    if lines:
+        return "\n".join(printable(line) for line in text.split("\n"))
+    return "".join(ch if ch.isprintable() else _code(ord(ch)) for ch in text)
+
+
+def _code(point: int) -> str:
+    return f"\\x{point:02x}" if point < 0x100 else f"\\u{point:04x}"

@@ -8,17 +8,14 @@ from typing import Annotated
 
 import pandas as pd
 import typer
-from rich.console import Console
-from rich.markup import escape
 
 from ..errors import InputError
 from ..responses.schema import LEVELS
 from ..tables import ACTION_COLUMNS, Q_COLUMNS
-from .app import app
+from .app import app, printable, say, stdout
 
 StudyOpt = Annotated[Path, typer.Option("--study", "-s", help="Study folder.")]
-#: stdout, not the stderr console of progress and messages: the text is the output
-out = Console(soft_wrap=True, highlight=False)
+out = stdout
 
 
 @app.command("show-prompt")
@@ -49,15 +46,15 @@ def show_prompt(
     for v in variants:
         system, user = respondent_messages(record, v)
         who = asked.get(v, "not asked in this study")
-        out.print(f"[bold]persona {escape(persona_id)} · variant {escape(v)}[/] · {escape(who)}")
+        out.print(f"[bold]persona {say(persona_id)} · variant {say(v)}[/] · {say(who)}")
         out.print("[dim]── system ──[/]")
-        out.print(system, markup=False)
+        out.print(printable(system, lines=True), markup=False)
         out.print("[dim]── user ──[/]")
-        out.print(user, markup=False)
+        out.print(printable(user, lines=True), markup=False)
         answer = _answer(study, persona_id, v)
         if answer:
             out.print("[dim]── recorded answer ──[/]")
-            out.print(answer, markup=False)
+            out.print(printable(answer, lines=True), markup=False)
 
 
 def _answer(study: Path, persona_id: str, variant: str) -> str:
@@ -65,7 +62,9 @@ def _answer(study: Path, persona_id: str, variant: str) -> str:
     path = study / "responses.parquet"
     if not path.exists():
         return ""
-    rows = pd.read_parquet(path)
+    from ..pipeline import read_table  # a damaged table is one line
+
+    rows = read_table(path, "responses")
     row = rows[(rows["persona_id"] == persona_id) & (rows["variant"] == variant)]
     if row.empty:
         return ""
@@ -95,15 +94,17 @@ def _persona(personas: pd.DataFrame, persona_id: str, where: Path) -> dict:
 
 def _asked(study: Path, persona_id: str) -> dict[str, str]:
     """Variant → "respondent (model)" (or "invalid answer") per variant asked of the persona."""
+    from ..pipeline import read_table
+
     asked: dict[str, str] = {}
     path = study / "responses.parquet"
     if path.exists():
-        rows = pd.read_parquet(path, columns=["persona_id", "variant", "respondent", "model"])
+        rows = read_table(path, "responses")
         for r in rows[rows["persona_id"] == persona_id].itertuples():
             asked[str(r.variant)] = f"respondent {r.respondent} ({r.model})"
     invalid = study / "responses_invalid.parquet"
     if invalid.exists():
-        rows = pd.read_parquet(invalid, columns=["persona_id", "variant", "error"])
+        rows = read_table(invalid, "responses_invalid")
         for r in rows[rows["persona_id"] == persona_id].itertuples():
             asked[str(r.variant)] = f"invalid answer: {r.error}"
     return asked
@@ -164,8 +165,13 @@ def _print_table(spec, study: Path | None) -> None:
     if study is not None:
         import pyarrow.parquet as pq
 
-        meta = pq.ParquetFile(study / spec.file)
-        present = meta.schema_arrow.names
+        try:
+            meta = pq.ParquetFile(study / spec.file)
+        except (OSError, ValueError) as exc:  # pyarrow's ArrowInvalid is a ValueError
+            raise InputError(f"{study / spec.file} is damaged (not a readable Parquet file: "
+                             f"{exc})", hint="`popnavshift run` on the folder makes it again"
+                             ) from None
+        present = [printable(n) for n in meta.schema_arrow.names]
         title = f"{study / spec.file} · {meta.metadata.num_rows} rows"
     undeclared = [n for n in present or [] if n not in spec.names]
     if out.width < 120:  # a narrow terminal: one short block per column, not a 7-column grid

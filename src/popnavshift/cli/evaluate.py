@@ -76,6 +76,8 @@ def evaluate(
 
     Example: popnavshift evaluate my_pkg.controller:MyBehavior --study quick
     """
+    from ..engine.lock import study_lock
+    from ..engine.ownership import claim_folder
     from ..evaluate import BASELINES, make_card
     from ..evaluate import evaluate as run_evaluation
     from ..sim.controllers.registry import controller_id
@@ -88,15 +90,19 @@ def evaluate(
     identity = controller_id(controller, params) if params else controller
     names = BASELINES if baselines is None else tuple(
         b.strip() for b in baselines.split(",") if b.strip())
-    ev = run_evaluation(identity, s, base, out, baselines=names, workers=workers,
-                        run_check=check,
-                        log=lambda msg: console.print(say(msg), highlight=False, soft_wrap=True))
-    if ev.counts["controller_errors"]:
-        console.print(f"[yellow]warning[/]: the controller raised in "
-                      f"{ev.counts['controller_errors']} of its {ev.counts['controller_runs']} "
-                      "runs (recorded as controller_error; see the card)")
-    with console.status("writing the card…"):
-        html, png = make_card(ev, n_boot=n_boot, seed=seed, safety_threshold=safety_threshold)
+    with study_lock(base):  # the baseline study's folder gets runs and the card: one writer
+        claim_folder(base, s, force=None, option="--study-dir")
+        ev = run_evaluation(identity, s, base, out, baselines=names, workers=workers,
+                            run_check=check, log=lambda msg: console.print(
+                                say(msg), highlight=False, soft_wrap=True))
+        if ev.counts["controller_errors"]:
+            console.print(f"[yellow]warning[/]: the controller raised in "
+                          f"{ev.counts['controller_errors']} of its "
+                          f"{ev.counts['controller_runs']} runs (recorded as controller_error; "
+                          "see the card)")
+        with console.status("writing the card…"):
+            html, png = make_card(ev, n_boot=n_boot, seed=seed,
+                                  safety_threshold=safety_threshold)
     console.print(f"card → {say(html)}\nfigure → {say(png)}", soft_wrap=True, highlight=False)
 
 
@@ -131,6 +137,8 @@ def compare(
 
     Example: popnavshift compare reactive early_yield robot_orca HRVO
     """
+    from ..engine.lock import study_lock
+    from ..engine.ownership import claim_folder
     from ..errors import ConfigError
     from ..evaluate.compare import compare as run_compare
     from ..evaluate.compare_page import write_comparison
@@ -142,11 +150,13 @@ def compare(
                           hint=f"e.g. --out {out.with_suffix('.html')}")
     s, default_dir = _baseline_study(study)
     base = folder(study_dir or default_dir)
-    comparison = run_compare(controllers, s, base, workers=workers, n_boot=n_boot, seed=seed,
-                             log=lambda msg: console.print(say(msg), highlight=False,
-                                                           soft_wrap=True))
-    with console.status("writing the comparison…"):
-        paths = write_comparison(comparison, out or base / "compare" / "compare.html")
+    with study_lock(base):  # cards are evaluated into the baseline folder: one writer
+        claim_folder(base, s, force=None, option="--study-dir")
+        comparison = run_compare(controllers, s, base, workers=workers, n_boot=n_boot,
+                                 seed=seed, log=lambda msg: console.print(
+                                     say(msg), highlight=False, soft_wrap=True))
+        with console.status("writing the comparison…"):
+            paths = write_comparison(comparison, out or base / "compare" / "compare.html")
     console.print(f"page → {say(paths['html'])}\ntable → {say(paths['csv'])} "
                   f"(also {paths['md'].suffix} and {paths['tex'].suffix})", soft_wrap=True,
                   highlight=False)
@@ -158,13 +168,12 @@ MADE_STUDY = Path("study")  # where `make run` writes the paper study
 def _baseline_study(name: str | None):
     """The study to evaluate against and its default folder: the one named, else the
     study `make run` left in ./study (its manifest holds the configuration), else quick."""
-    import json
-
+    from ..engine.store import read_manifest
     from ..engine.study import load_study, study_from_dict
 
     manifest = MADE_STUDY / "manifest.json"
     if name is None and manifest.exists():
-        cfg = json.loads(manifest.read_text("utf-8")).get("study_config")
+        cfg = (read_manifest(MADE_STUDY) or {}).get("study_config")
         if cfg:
             return study_from_dict(cfg, str(manifest)), MADE_STUDY
     s = load_study(name or "quick")

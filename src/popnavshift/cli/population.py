@@ -156,6 +156,16 @@ def probe(
         int | None,
         _opt("Stop after this many records in a row fail at the transport level.", min=1),
     ] = None,
+    max_retry_after: Annotated[
+        float | None,
+        _opt("Longest Retry-After a rate-limiting server gets (s; default 60).",
+             callback=finite_range(0)),
+    ] = None,
+    deadline: Annotated[
+        float | None,
+        _opt("Most seconds one request may take, retries and waits included.",
+             callback=finite_range(0, above=True)),
+    ] = None,
     matched_n: Annotated[
         int, typer.Option(min=1, help="Matched sample size (deadline re-ask).")
     ] = 202,
@@ -175,6 +185,7 @@ def probe(
         seed=respondent_seed, max_concurrency=concurrency, rate_limit=rate_limit,
         timeout=timeout, max_retries=max_retries, max_reasks=max_reasks, max_tokens=max_tokens,
         ready_timeout=ready_timeout, max_consecutive_failures=max_failures,
+        max_retry_after=max_retry_after, deadline=deadline,
     )
     if respondent == "rule":
         opts = {k: v for k, v in opts.items() if k == "seed"}

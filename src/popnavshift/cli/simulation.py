@@ -11,7 +11,7 @@ from rich.table import Table
 
 from ..errors import ConfigError, UnknownNameError
 from ..progress import console
-from .app import app, say
+from .app import app, say, stdout
 
 StudyDir = Annotated[
     Path,
@@ -46,6 +46,10 @@ ParamOpt = Annotated[
 ]
 
 
+#: what ``replay --out`` can write, checked before the run is simulated
+REPLAY_SUFFIXES = (".html", ".htm", ".svg", ".gif")
+
+
 def parse_params(items: list[str] | None) -> dict[str, Any]:
     """``["a=1", "b=true"]`` → ``{"a": 1, "b": True}`` (JSON values, else strings)."""
     out: dict[str, Any] = {}
@@ -53,6 +57,8 @@ def parse_params(items: list[str] | None) -> dict[str, Any]:
         key, sep, raw = item.partition("=")
         if not sep or not key:
             raise ConfigError(f"--param {item!r}: expected KEY=VALUE")
+        if key in out:
+            raise ConfigError(f"--param {key!r} is given twice", hint="give each KEY once")
         try:
             out[key] = json.loads(raw)
         except json.JSONDecodeError:
@@ -64,6 +70,7 @@ def _rebuild(folder: Path, episode: str, population: str, mapping: str, controll
              backend: str, seed: int, record: bool = False):
     """Simulate one run of the study in ``folder`` (its populations are built with the
     default settings if missing) by :func:`popnavshift.engine.rebuild.rebuild_run`."""
+    from ..engine.lock import study_lock
     from ..engine.rebuild import population_members, rebuild_run
     from ..engine.runner import population_settings, run_stages
     from ..engine.study import Study
@@ -78,7 +85,8 @@ def _rebuild(folder: Path, episode: str, population: str, mapping: str, controll
     if not (folder / "populations.parquet").exists():
         console.print(f"building the default populations in {say(folder)} …")
         folder.mkdir(parents=True, exist_ok=True)
-        run_stages(folder, population_settings(Study(name="default", parts={})), True)
+        with study_lock(folder):
+            run_stages(folder, population_settings(Study(name="default", parts={})), True)
     pops = read_table(folder / "populations.parquet", "populations")
     try:
         population_members(pops, mapping, population)
@@ -112,6 +120,7 @@ def episodes(
     from ..episodes.specs import all_cells, all_episodes, episodes_table
 
     table = episodes_table(all_episodes(seed))
+    cells = [c for c in all_cells() if scene is None or c.scene == scene]
     if scene is not None:
         scenes = sorted(table["scene"].unique())
         if scene not in scenes:
@@ -119,7 +128,7 @@ def episodes(
         table = table[table["scene"] == scene]
     if json_out:
         counts = {
-            "cells": len(all_cells()),
+            "cells": len(cells),
             "episodes": len(table),
             "by_scene": table.groupby("scene").size().to_dict(),
             "pedestrians": int(table["n_peds"].sum()),
@@ -128,7 +137,7 @@ def episodes(
         return
     # the id is what `simulate` and `replay` take: never cut it; it already names the
     # scene, width, density, speed and variant, so a narrow terminal shows it alone
-    wide = console.width >= 100
+    wide = stdout.width >= 100
     t = Table()
     t.add_column("episode (the id for simulate -e / replay -e)", no_wrap=True, min_width=32)
     heads = ("scene", "width [m]", "density [/m²]", "robot [m/s]", "variant") if wide else ()
@@ -138,9 +147,9 @@ def episodes(
     for r in table.itertuples():
         cols = (r.scene, f"{r.width:g}", f"{r.density:g}", f"{r.robot_speed:g}",
                 str(r.variant)) if wide else ()
-        t.add_row(r.id, *cols, str(r.n_peds))
-    console.print(t)
-    console.print(f"{len(all_cells())} cells, {len(table)} episodes shown")
+        t.add_row(say(r.id), *cols, str(r.n_peds))
+    stdout.print(t)
+    stdout.print(f"{len(cells)} cells, {len(table)} episodes shown")
 
 
 @app.command()
@@ -205,6 +214,10 @@ def replay(
     """
     from ..viz.replay import write_replay
 
+    if out.is_dir() or out.suffix.lower() not in REPLAY_SUFFIXES:
+        raise ConfigError(f"--out {out}: expected a file ending in "
+                          f"{', '.join(REPLAY_SUFFIXES)}"
+                          f"{' (it is a folder)' if out.is_dir() else ''}")
     ident = _controller(controller, parse_params(param))
     result = _rebuild(study_dir, episode, population, mapping, ident, backend, seed, record=True)
     title = f"{episode} · {population} · {controller} · {backend} → {result.run['outcome']}"

@@ -8,11 +8,11 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.markup import escape
 from rich.table import Table
 
+from ..errors import InputError
 from ..progress import console
-from .app import MAX_WORKERS, app, check_workers, default_folder, folder, say
+from .app import MAX_WORKERS, app, check_workers, default_folder, folder, say, stdout
 
 StudyArg = Annotated[
     str | None,
@@ -29,6 +29,8 @@ def plan(
         typer.Option("--from", help="A finished study folder (a pilot) whose report gives the "
                      "power advice (default: the study's own output folder, if it has one)."),
     ] = None,
+    report: Annotated[bool, typer.Option(
+        help="Check that the report can be written too, as `run` does by default.")] = True,
 ) -> None:
     """Print the run counts of a study, per part (nothing is run), and what would decide
     each undecided headline rate (more seed sets, more null replicates, or nothing).
@@ -45,8 +47,10 @@ def plan(
     from ..episodes.specs import all_episodes
 
     s = load_study(study or "paper")
-    validate_study(s, all_episodes(s.seed))
+    validate_study(s, all_episodes(s.seed), report=report)
     counts = count_runs(s, all_episodes(s.seed))
+    if from_dir is not None:
+        check_pilot(from_dir)
     pilot = from_dir or default_folder(s.name)
     advice = power_advice(pilot / "report" / "tables" / "evidence_power.csv")
     if json_out:
@@ -64,21 +68,21 @@ def plan(
             f"{c['no_robot_runs']:,}",
             f"{c['total']:,}",
         )
-    console.print(t)
-    console.print("'distinct' is what a run executes: parts share identical runs.")
+    stdout.print(t)
+    stdout.print("'distinct' is what a run executes: parts share identical runs.")
     if advice is None:
-        console.print(f"power: no estimate yet ({escape(str(pilot))} has no report). Run a "
+        stdout.print(f"power: no estimate yet ({say(pilot)} has no report). Run a "
                       "pilot, e.g. `popnavshift run pilot` (the matched pair and its swap null "
                       "on 2 seed sets), then `popnavshift plan "
-                      f"{escape(study or 'paper')} --from study-pilot`.", highlight=False)
+                      f"{say(study or 'paper')} --from study-pilot`.", highlight=False)
         return
     p = Table("comparison", "metric", "rule", "excess", "verdict now", "what would decide it",
-              title=f"power (from {escape(str(pilot))})")
+              title=f"power (from {say(pilot)})")
     for r in advice.itertuples(index=False):
-        p.add_row(r.comparison, r.metric, r.rule, f"{100 * r.excess:+.1f} pp", r.verdict,
-                  advice_text(r))
-    console.print(p)
-    console.print("what would decide it: the fewest seed sets and null replicates that decide the "
+        p.add_row(say(r.comparison), say(r.metric), say(r.rule), f"{100 * r.excess:+.1f} pp",
+                  say(r.verdict), say(advice_text(r)))
+    stdout.print(p)
+    stdout.print("what would decide it: the fewest seed sets and null replicates that decide the "
                   "verdict with 80% power if the excess stays at its estimate, with the null's "
                   "spread falling with seed sets as the pilot's own replicate curve measured; "
                   "add them as `seeds:` and `replicates:` to the parts that run the comparison "
@@ -104,8 +108,33 @@ def power_advice(path: Path):
         return None
     cols = ["comparison", "metric", "rule", "excess", "verdict", "limit", "seed_sets_needed",
             "nulls_needed", "runs_needed", "minutes_needed"]
-    table = pd.read_csv(path)
-    return table[cols] if set(cols) <= set(table.columns) else None
+    numbers = cols[3:4] + cols[6:]
+    try:
+        table = pd.read_csv(path)
+    except (ValueError, UnicodeDecodeError) as exc:  # pandas' ParserError is a ValueError
+        raise InputError(f"{path} is damaged (not a readable CSV: {exc})",
+                         hint="write the report again: popnavshift report FOLDER") from None
+    if not set(cols) <= set(table.columns):
+        return None
+    table = table[cols]
+    if not all(pd.api.types.is_numeric_dtype(table[c]) for c in numbers):
+        raise InputError(f"{path} is damaged (a count or rate that is not a number)",
+                         hint="write the report again: popnavshift report FOLDER")
+    return table
+
+
+def check_pilot(path: Path) -> None:
+    """``plan --from``: a folder that a study ran in, or one clear line."""
+    from ..engine.ownership import folder_owner
+
+    if not path.exists():
+        raise InputError(f"--from {path}: no such folder", hint="give the --out of a pilot run")
+    if not path.is_dir():
+        raise InputError(f"--from {path} is a file, not a study folder",
+                         hint="give the --out of a pilot run")
+    if folder_owner(path) is None:
+        raise InputError(f"--from {path} holds no PopNavShift study",
+                         hint="give the --out of a pilot run, e.g. study-pilot")
 
 
 @app.command()
@@ -237,6 +266,9 @@ def run(
                      "own seed, in place of the study's `respondent: {samples: k}` (the "
                      "respondent audit's test–retest needs 2 or more)."),
     ] = None,
+    force: Annotated[bool, typer.Option(
+        "--force", help="Write into --out even when it holds another study or other files.")
+                     ] = False,
 ) -> None:
     """Run every stage of a study that is not already done; resumable.
 
@@ -245,18 +277,31 @@ def run(
     out identical to an uninterrupted run.
     """
     from ..engine.lock import study_lock
-    from ..engine.runner import run_study
+    from ..engine.ownership import claim_folder
     from ..engine.study import load_study
-    from .population import print_sizes
+    from ..engine.validate import validate_study
+    from ..episodes.specs import all_episodes
 
     check_workers(workers, executor)
     s = load_study(study or "paper")
     if samples is not None:  # part of the study as run: its config hash and manifest say so
         s = s.model_copy(update={"respondent": s.respondent.model_copy(
             update={"samples": samples})})
+    validate_study(s, all_episodes(s.seed), report=report)  # the one validation, as plan's
     target = folder(out or default_folder(s.name))
-    with study_lock(target):
-        report_ = run_study(s, target, workers=workers, executor_name=executor, address=address)
+    with study_lock(target):  # held until the report is written: one writer per folder
+        claim_folder(target, s, force)
+        _run(s, target, workers, executor, address, report)
+    console.print(f"outputs in {say(target.resolve())}")
+
+
+def _run(s, target: Path, workers: int, executor: str, address: str | None,
+         report: bool) -> None:
+    """The body of ``run``, holding the folder's lock."""
+    from ..engine.runner import run_study
+    from .population import print_sizes
+
+    report_ = run_study(s, target, workers=workers, executor_name=executor, address=address)
     if report_.nothing_to_do:
         console.print(
             f"[green]nothing to do[/]: {say(target)} is complete ({report_.planned:,} runs)"
@@ -281,7 +326,6 @@ def run(
             if report_.nothing_to_do:
                 console.print(f"rebuilding the report: {why}", highlight=False)
             _write_report(target)
-    console.print(f"outputs in {say(target.resolve())}")
 
 
 @app.command("report")
@@ -290,7 +334,12 @@ def report_cmd(
     n_boot: Annotated[int, typer.Option(min=1, help="Bootstrap resamples for the CIs.")] = 1000,
 ) -> None:
     """Write DIR/report/index.html with every table (CSV) and figure (PNG, SVG)."""
-    _write_report(study_dir, n_boot=n_boot)
+    from ..engine.lock import study_lock
+
+    if not study_dir.is_dir():
+        raise InputError(f"study folder {study_dir} not found", hint="give the --out of a run")
+    with study_lock(study_dir):  # one writer: a run or another report waits its turn
+        _write_report(study_dir, n_boot=n_boot)
 
 
 def _write_report(study_dir: Path, n_boot: int = 1000) -> None:

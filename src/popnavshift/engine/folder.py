@@ -54,7 +54,17 @@ def _study(manifest: dict[str, Any]) -> Study | None:
 
 
 def _read_json(path: Path) -> dict[str, Any]:
-    return json.loads(path.read_text("utf-8")) if path.exists() else {}
+    """A JSON object the run wrote ({} when absent); InputError when it is damaged."""
+    if not path.exists():
+        return {}
+    try:
+        data = json.loads(path.read_text("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError):
+        data = None
+    if not isinstance(data, dict):
+        raise InputError(f"{path} is damaged (not a JSON object)",
+                         hint="run the study again on this folder to rewrite it")
+    return data
 
 
 #: The pedestrian columns the analysis reads (paired delays, no-robot checks, selections).

@@ -20,9 +20,10 @@ from typing import Any
 import pandas as pd
 
 from ..episodes.specs import all_episodes
-from ..errors import ConfigError
+from ..errors import ConfigError, InputError
 from ..io import write_json
 from ..pipeline import PopulationSettings, read_table
+from ..populations.build import check_members
 from ..populations.perturb import ProfileSet
 from ..progress import console
 from ..responses.probes import PROBE_SET_HASH
@@ -32,7 +33,7 @@ from .executors import execute
 from .plan import batches, count_runs, plan_study
 from .stages import STAGES, batch_inputs, stage_stamps
 from .stamps import code_stamps
-from .store import RunStore, read_stamps, readable_parquet
+from .store import RunStore, read_manifest, read_stamps, readable_parquet
 from .study import Study
 from .validate import validate_study
 from .worker import Context
@@ -78,7 +79,14 @@ def population_settings(study: Study) -> PopulationSettings:
         structure=any(ProfileSet.parse(m).is_structure for m in used),
         nulls=nulls,
         null_mappings=tuple(sorted({m for part in null_parts for m in part.mappings})),
+        required=required_populations(study),
     )
+
+
+def required_populations(study: Study) -> tuple[str, ...]:
+    """Every population some part of ``study`` runs, in the order the parts name them."""
+    return tuple(dict.fromkeys(p for part in study.parts.values()
+                               for p in part.planned_populations))
 
 
 def run_stages(folder: Path, s: PopulationSettings, show_progress: bool) -> list[str]:
@@ -116,6 +124,7 @@ def run_study(
     settings = population_settings(study)
     report.stages_run = run_stages(folder, settings, show_progress)
     populations = read_table(folder / "populations.parquet", "populations")
+    check_members(populations["population"].unique(), settings.required or ())
     runs = plan_study(study, episodes)
     built = set(populations["mapping"])
     missing = sorted({r.mapping for r in runs} - built)
@@ -133,7 +142,7 @@ def run_study(
     todo = [b for b in all_batches if not store.is_done(b)]
     report.planned = len(runs)
     report.reused = len(runs) - sum(len(b.runs) for b in todo)
-    complete = (folder / "manifest.json").exists() and not all_batches
+    complete = _manifest_intact(folder) and not all_batches
     if not todo and not report.stages_run and complete and _holds_exactly(folder, runs):
         report.seconds = time.perf_counter() - started
         return report
@@ -159,6 +168,15 @@ def run_study(
         count_runs(study, episodes),
     )
     return report
+
+
+def _manifest_intact(folder: Path) -> bool:
+    """Whether the manifest reads back; a damaged one is written again (not reported as
+    'nothing to do' while `report` refuses it)."""
+    try:
+        return read_manifest(folder) is not None
+    except InputError:
+        return False
 
 
 def _holds_exactly(folder: Path, runs: list) -> bool:

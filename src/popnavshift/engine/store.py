@@ -41,12 +41,38 @@ def read_stamps(folder: Path) -> dict:
         stamps = json.loads(path.read_text("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError):
         stamps = None
-    if not isinstance(stamps, dict):
+    if not isinstance(stamps, dict) or not all(_stamp_ok(k, v) for k, v in stamps.items()):
         raise InputError(
-            f"{path} is damaged (not a JSON object)",
+            f"{path} is damaged (not a JSON object of stage stamps)",
             hint="delete it: every stage is then checked and redone as needed",
         )
     return stamps
+
+
+def _stamp_ok(key: str, value: object) -> bool:
+    """A stage's stamp is a string; the run record (:attr:`RunStore.RECORD`) holds the
+    inputs stamp and each controller's code stamp."""
+    if key != RunStore.RECORD:
+        return isinstance(value, str)
+    return (isinstance(value, dict) and isinstance(value.get("inputs"), str)
+            and isinstance(value.get("code", {}), dict))
+
+
+def read_manifest(folder: Path) -> dict | None:
+    """``folder/manifest.json`` (None when absent); InputError saying how to recover
+    when it is damaged."""
+    path = Path(folder) / "manifest.json"
+    if not path.exists():
+        return None
+    try:
+        manifest = json.loads(path.read_text("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError):
+        manifest = None
+    if not isinstance(manifest, dict):
+        raise InputError(f"{path} is damaged (not a JSON object)",
+                         hint="run the study again on this folder: `popnavshift run "
+                              "STUDY --out FOLDER` rewrites it without simulating again")
+    return manifest
 
 
 def readable_parquet(path: Path) -> bool:
@@ -71,7 +97,8 @@ def check_study_folder(folder: Path) -> None:
                 hint="`popnavshift run` on this folder rebuilds the run tables from their "
                 "shards" if name in ("runs", "pedestrians") else "run its stage again",
             )
-    for name in ("manifest", "personas", "responses"):
+    read_manifest(folder)
+    for name in ("personas", "responses"):
         path = folder / f"{name}.json"
         try:
             if path.exists():

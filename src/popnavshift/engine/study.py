@@ -13,13 +13,14 @@ from __future__ import annotations
 import re
 from importlib import resources
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-import yaml
 from pydantic import (
+    AfterValidator,
     BaseModel,
     ConfigDict,
     Field,
+    PrivateAttr,
     ValidationError,
     field_validator,
     model_serializer,
@@ -30,13 +31,39 @@ from ..errors import ConfigError, UnknownNameError
 from ..hashing import digest
 from ..paper import PAPER_CONTROLLERS, PAPER_POPULATIONS
 from ..populations.build import POPULATIONS, SPLIT_HALVES, is_known
-from ..populations.identity import MATCHED_PAIR
+from ..populations.identity import MATCHED_PAIR, SIZED_SOURCE
 from ..populations.nulls import null_populations
 from ..populations.perturb import ProfileSet
 from ..sim.controllers.registry import controller_id
+from .study_yaml import parse_study_yaml
 
 SCENES = ("sidewalk", "head_on", "crossing", "bottleneck", "obstruction")
 SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
+#: a name becomes a folder and a table value: long enough for any study, short enough
+#: for any file system (255 bytes a component)
+NAME_MAX = 100
+#: seeds feed numpy's SeedSequence and int64 table columns: non-negative, 32 bits
+SEED_MAX = 2**32 - 1
+#: more personas than this is a typo (the MATRAIX release holds about 100 000)
+PERSONAS_MAX = 10_000_000
+
+
+def _no_duplicates(values: tuple | None) -> tuple | None:
+    """A listed value twice is a typo or a copy-paste slip, never a design: refuse it
+    instead of silently running it once (or twice)."""
+    for i, value in enumerate(values or ()):
+        if value in values[:i]:  # type: ignore[index]
+            raise ValueError(f"{value!r} is listed twice")
+    return values
+
+
+#: strict: YAML's ``true`` is not the seed 1, nor ``1.0`` the seed 1 (silently rounded)
+Seed = Annotated[int, Field(strict=True, ge=0, le=SEED_MAX)]
+Count = Annotated[int, Field(strict=True, ge=1, le=PERSONAS_MAX)]
+Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]
+Unique = AfterValidator(_no_duplicates)
+#: a non-empty list of distinct names
+Names = Annotated[tuple[str, ...], Field(min_length=1), Unique]
 
 
 class Strict(BaseModel):
@@ -45,11 +72,12 @@ class Strict(BaseModel):
 
 class PersonaSource(Strict):
     source: str = "synthetic"
-    n: int = Field(600, ge=1)
+    n: Count = 600
     missing: Literal["require", "fill", "error"] = "require"
     codebook: str | None = None  # release only: codebook file of another layout
-    sources: tuple[str, ...] | None = None  # release only: record sources kept
-    verify_checksums: bool = True  # release only: shards against manifest.json
+    sources: Annotated[tuple[str, ...] | None, Unique] = None  # release only: sources kept
+    #: release only: check the shards against manifest.json
+    verify_checksums: Annotated[bool, Field(strict=True)] = True
 
 
 class RespondentSpec(Strict):
@@ -72,19 +100,20 @@ class RespondentSpec(Strict):
 class EpisodeSelection(Strict):
     """Which episodes of the 104-cell grid a part runs (``None`` = all values)."""
 
-    scenes: tuple[str, ...] | None = None
-    widths: tuple[float, ...] | None = None
-    densities: tuple[float, ...] | None = None
-    robot_speeds: tuple[float, ...] | None = None
-    variants: tuple[int, ...] | None = None
-    ids: tuple[str, ...] | None = None  # explicit episode ids (wins over the filters)
+    scenes: Annotated[tuple[str, ...] | None, Unique] = None
+    widths: Annotated[tuple[Number, ...] | None, Unique] = None
+    densities: Annotated[tuple[Number, ...] | None, Unique] = None
+    robot_speeds: Annotated[tuple[Number, ...] | None, Unique] = None
+    variants: Annotated[tuple[Annotated[int, Field(strict=True)], ...] | None, Unique] = None
+    #: explicit episode ids (wins over the filters)
+    ids: Annotated[tuple[str, ...] | None, Unique] = None
 
     @field_validator("scenes")
     @classmethod
     def _known_scenes(cls, v):
         for s in v or ():
             if s not in SCENES:
-                raise UnknownNameError("scene", s, SCENES)
+                raise ValueError(str(UnknownNameError("scene", s, SCENES)))
         return v
 
 
@@ -94,7 +123,7 @@ class NullDesign(Strict):
     matched in size to each of the part's populations."""
 
     kind: Literal["swap", "sized"]
-    replicates: int = Field(19, ge=1, le=999)
+    replicates: Annotated[int, Field(strict=True, ge=1, le=999)] = 19
 
 
 #: What the analysis does with a study part: ``main`` is the paper's design (Table I, the
@@ -123,18 +152,19 @@ def role_from_content(part: Part) -> str:
 
 
 class Part(Strict):
-    populations: tuple[str, ...] = PAPER_POPULATIONS
+    populations: Names = PAPER_POPULATIONS
     episodes: EpisodeSelection = EpisodeSelection()
     #: controller ids: a registered name, an entry point or ``package.module:Class``;
     #: in YAML also ``{name: HRVO, params: {...}}``, stored as ``HRVO{"...":...}``
-    controllers: tuple[str, ...] = PAPER_CONTROLLERS
-    backends: tuple[str, ...] = ("orca",)
+    controllers: Names = PAPER_CONTROLLERS
+    backends: Names = ("orca",)
     #: profile set(s): a mapping A–D, or a robustness label such as A~shuffle
-    mapping: str | tuple[str, ...] = "A"
-    baseline: bool = True  # also run every episode × population without a robot
+    mapping: str | Names = "A"
+    #: also run every episode × population without a robot
+    baseline: Annotated[bool, Field(strict=True)] = True
     #: extra study seeds: the part's episodes are repeated, drawn with each seed
     #: (ids ``<episode>@s<seed>``), so the report can show the spread across seed sets
-    seeds: tuple[int, ...] = ()
+    seeds: Annotated[tuple[Seed, ...], Unique] = ()
     #: run a null design instead of ``populations`` (which it stands in for): the
     #: populations run are :attr:`planned_populations`
     null_design: NullDesign | None = None
@@ -178,8 +208,20 @@ class Part(Strict):
     def _known_populations(cls, v):
         for p in v:
             if not is_known(p):
-                raise UnknownNameError("population", p, POPULATIONS + SPLIT_HALVES)
+                # a ValueError: pydantic adds where it was (parts.main.populations.0)
+                raise ValueError(str(UnknownNameError("population", p,
+                                                      POPULATIONS + SPLIT_HALVES)))
         return v
+
+    @model_validator(mode="after")
+    def _runs_something(self) -> Part:
+        """A sized null of ``mixed`` alone has no population to stand in for: the part
+        would plan no run at all."""
+        if self.null_design is not None and not self.planned_populations:
+            raise ValueError(f"a sized null stands in for populations other than "
+                             f"{SIZED_SOURCE!r} (its own size-matched subset), got "
+                             f"{list(self.populations)}")
+        return self
 
     @model_validator(mode="before")
     @classmethod
@@ -190,9 +232,9 @@ class Part(Strict):
                 and data["null_design"].get("kind") == "swap"):
             return data
         pops = data.get("populations", MATCHED_PAIR)
-        if sorted(pops) != sorted(MATCHED_PAIR):
+        if not isinstance(pops, list | tuple) or sorted(map(str, pops)) != sorted(MATCHED_PAIR):
             raise ValueError(f"a swap null stands in for the matched pair: populations "
-                             f"{list(MATCHED_PAIR)} (the default), got {list(pops)}")
+                             f"{list(MATCHED_PAIR)} (the default), got {pops!r}")
         return {**data, "populations": tuple(MATCHED_PAIR)}
 
 
@@ -217,15 +259,21 @@ def _controller_entry(entry: Any) -> Any:
 class Study(Strict):
     name: str
     description: str = ""
-    seed: int = 0
+    seed: Seed = 0
     personas: PersonaSource = PersonaSource()
     respondent: RespondentSpec = RespondentSpec()
-    matched_n: int = Field(202, ge=1)
-    mappings: tuple[str, ...] = ("A", "B", "C", "D")
+    matched_n: Count = 202
+    mappings: Annotated[tuple[str, ...], Unique] = ("A", "B", "C", "D")
     #: a second respondent for the respondent-robustness part (matched pair only)
     respondent2: RespondentSpec | None = None
     parts: dict[str, Part]
     output: str | None = None
+    _where: str = PrivateAttr("")
+
+    @property
+    def where(self) -> str:
+        """Where the study came from, for messages: its file, or ``study <name>``."""
+        return self._where or f"study {self.name}"
 
     def role(self, name: str) -> str:
         """The analysis role of part ``name``: declared, else its name when that is a role
@@ -258,9 +306,18 @@ class Study(Strict):
     @classmethod
     def _safe_name(cls, v: str) -> str:
         # the name becomes a folder (./study-<name>): no separators, no "..", no dotfile
-        if not SAFE_NAME.fullmatch(v) or ".." in v:
-            raise ValueError("a study name is letters, digits, '.', '_' and '-' (it names "
-                             "the default output folder study-<name>)")
+        if not SAFE_NAME.fullmatch(v) or ".." in v or len(v) > NAME_MAX:
+            raise ValueError(f"a study name is up to {NAME_MAX} letters, digits, '.', '_' "
+                             "and '-' (it names the default output folder study-<name>)")
+        return v
+
+    @field_validator("parts")
+    @classmethod
+    def _safe_part_names(cls, v: dict[str, Part]) -> dict[str, Part]:
+        for name in v:  # a part name is a table value and a report heading
+            if not SAFE_NAME.fullmatch(name) or len(name) > NAME_MAX:
+                raise ValueError(f"part name {name!r}: up to {NAME_MAX} letters, digits, "
+                                 "'.', '_' and '-'")
         return v
 
     def config_hash(self) -> str:
@@ -272,17 +329,20 @@ def _format_error(err: ValidationError, where: str) -> str:
     first = err.errors()[0]
     loc = ".".join(str(x) for x in first["loc"]) or "(top level)"
     got = first.get("input")
-    got_txt = "" if isinstance(got, dict) else f"; got {got!r}"
-    return f"{where}: {loc}: {first['msg']}{got_txt}"
+    shown = repr(got) if len(repr(got)) <= 80 else repr(got)[:77] + "…"
+    got_txt = "" if isinstance(got, dict) else f"; got {shown}"
+    return f"{where}: {loc}: {first['msg'].removeprefix('Value error, ')}{got_txt}"
 
 
 def study_from_dict(data: Any, where: str = "study") -> Study:
     if not isinstance(data, dict):
         raise ConfigError(f"{where}: a study must be a mapping of keys, got {type(data).__name__}")
     try:
-        return Study.model_validate(data)
+        study = Study.model_validate(data)
     except ValidationError as err:
         raise ConfigError(_format_error(err, where)) from None
+    study._where = where
+    return study
 
 
 def builtin_studies() -> list[str]:
@@ -298,7 +358,11 @@ def load_study(name_or_path: str | Path) -> Study:
     if path.suffix in (".yaml", ".yml") or path.is_file():
         if not path.is_file():
             raise ConfigError(f"study file not found: {path}")
-        text = path.read_text("utf-8")
+        try:
+            text = path.read_text("utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            reason = getattr(exc, "strerror", None) or "not UTF-8 text"
+            raise ConfigError(f"study file {path}: cannot be read ({reason})") from None
     elif str(name_or_path) in builtin_studies():
         text = (
             resources.files("popnavshift")
@@ -308,10 +372,4 @@ def load_study(name_or_path: str | Path) -> Study:
         where = f"built-in study {name_or_path!r}"
     else:
         raise UnknownNameError("study", str(name_or_path), builtin_studies())
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        at = f" at line {mark.line + 1}" if mark else ""
-        raise ConfigError(f"{where}: not valid YAML{at}") from None
-    return study_from_dict(data, where)
+    return study_from_dict(parse_study_yaml(text, where), where)

@@ -15,6 +15,7 @@ respondent, cost money), instead of after them or, worse, silently:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Sequence
 from typing import Any
 
@@ -36,11 +37,27 @@ GRID_FIELDS = {
 }
 
 
-def validate_study(study: Study, episodes: Iterable) -> None:
-    """Raise ConfigError for the first value of ``study`` that cannot run."""
+def validate_study(study: Study, episodes: Iterable, report: bool = False) -> None:
+    """Raise ConfigError for the first value of ``study`` that cannot run (with
+    ``report``: or whose report cannot be written); its message starts with the study's
+    file (or name)."""
+    try:
+        _validate(study, episodes)
+        if report:
+            _check_reportable(study)
+    except ConfigError as err:
+        if err.message.startswith(study.where):
+            raise
+        raise ConfigError(f"{study.where}: {err.message}", hint=err.hint) from None
+
+
+def _validate(study: Study, episodes: Iterable) -> None:
+    if not study.parts:
+        raise ConfigError(f"{study.where}: parts: no part, so nothing would run",
+                          hint="add a part, e.g. `parts: {main: {populations: [mixed]}}`")
     eps = list(episodes)
     for name, part in study.parts.items():
-        where = f"study {study.name}: part {name}"
+        where = f"{study.where}: parts.{name}"
         check_grid_values(part.episodes, eps, where)
         if not select_episodes(part.episodes, eps):
             raise ConfigError(f"{where}: its episode filters together match no episode",
@@ -66,6 +83,17 @@ def check_grid_values(selection: EpisodeSelection, episodes: Sequence, where: st
                 )
 
 
+def _check_reportable(study: Study) -> None:
+    """The report ranks controllers on every seed set of a part: a part with extra
+    seeds and one controller would run, then fail in the report."""
+    for name, part in study.parts.items():
+        if part.seeds and len(part.controllers) < 2:
+            raise ConfigError(
+                f"parts.{name}.seeds: the report ranks controllers on each seed set, which "
+                f"needs at least 2 controllers; got {list(part.controllers)}",
+                hint="add a controller, or run with --no-report")
+
+
 def _check_names(study: Study) -> None:
 
     controllers = {c for part in study.parts.values() for c in part.controllers}
@@ -78,9 +106,11 @@ def _check_names(study: Study) -> None:
         for mapping in part.mappings:
             if mapping not in known:
                 raise UnknownNameError(f"mapping (part {name})", mapping, known)
-    _check_respondent(study.respondent.name, study.respondent.options)
+    _check_respondent(study.respondent.name, study.respondent.options,
+                      f"{study.where}: respondent")
     if study.respondent2 is not None:
-        _check_respondent(study.respondent2.name, study.respondent2.options)
+        _check_respondent(study.respondent2.name, study.respondent2.options,
+                          f"{study.where}: respondent2")
 
 
 def known_mappings(study: Study) -> list[str]:
@@ -96,9 +126,23 @@ def known_mappings(study: Study) -> list[str]:
     return sorted({s.label for s in sets})
 
 
-def _check_respondent(name: str, options: dict[str, Any]) -> None:
+def _check_respondent(name: str, options: dict[str, Any], where: str) -> None:
     """Build the respondent (no call is made) and check its settings."""
+    _check_finite(options, f"{where}.options")
     respondent = RESPONDENTS.make(name, **options)
     validate = getattr(respondent, "validate", None)
     if callable(validate):
         validate()
+
+
+def _check_finite(value: Any, where: str) -> None:
+    """No NaN or infinity among option values (YAML's ``.nan`` passes every range check
+    a respondent makes, then fails deep in a request)."""
+    if isinstance(value, dict):
+        for key, item in value.items():
+            _check_finite(item, f"{where}.{key}")
+    elif isinstance(value, list | tuple):
+        for i, item in enumerate(value):
+            _check_finite(item, f"{where}[{i}]")
+    elif isinstance(value, float) and not math.isfinite(value):
+        raise ConfigError(f"{where}: {value!r} is not a finite number")

@@ -108,7 +108,8 @@ def apply_missing(
     if missing == "error":
         raise InputError(
             f"{where}: row {row_number(row)}: required field {field!r} is missing",
-            hint="use missing='require' to skip such records or 'fill' for schema defaults",
+            hint="--missing require (personas.missing: require) skips such records, "
+                 "--missing fill fills schema defaults",
         )
     table = table.copy()
     for j, field in enumerate(REQUIRED_FIELDS):
@@ -120,7 +121,7 @@ def apply_missing(
             raise InputError(
                 f"{where}: row {row_number(row)}: required field {field!r} is missing and "
                 "has no schema default to fill",
-                hint="use missing='require' to skip such records",
+                hint="--missing require (personas.missing: require) skips such records",
             )
         table[field] = table[field].fillna(default)
     return table, 0, int(absent.sum())

@@ -90,6 +90,7 @@ def load_personas(
             _check_release_only(codebook, sources)
             table, prov = _load_flat(path, n, seed, missing)
         _check_enough(table, n, path, prov)
+    check_ids(table["persona_id"], source)
     table = table.sort_values("persona_id", kind="stable").reset_index(drop=True)
     table = check_table(table[PERSONAS.names], "personas")
     prov |= {
@@ -131,7 +132,8 @@ def _check_enough(table: pd.DataFrame, n: int | None, path: Path, prov: dict) ->
             f"{path}: {n or 'at least one'} persona record(s) requested but only {len(table)} "
             f"usable ({prov['records_scanned']} scanned, "
             f"{prov['records_dropped_missing']} dropped for missing required fields)",
-            hint="lower n, pass n=None to take every usable record, or use missing='fill'",
+            hint="lower --n (personas.n in a study file), or fill missing fields with "
+                 "--missing fill (personas.missing: fill)",
         )
 
 
@@ -146,3 +148,15 @@ def _existing_path(source: str) -> Path:
         if close
         else "give a CSV/JSONL/Parquet file, a MatrAIx release folder or hf://owner/name",
     )
+
+
+def check_ids(ids: pd.Series, source: object) -> None:
+    """InputError for the first persona id that is blank or holds a character that is not
+    printable (NUL, ESC, a newline, a bidi override): an id is shown on the terminal,
+    written to every table and typed back by the user (`show-prompt ID`)."""
+    for pid in ids.astype(str):
+        if not pid.strip() or not pid.isprintable():
+            shown = pid.encode("unicode_escape").decode("ascii")
+            raise InputError(f"{source}: persona id '{shown}' is "
+                             f"{'blank' if not pid.strip() else 'not printable text'}",
+                             hint="ids are printable text, e.g. p-000123")

@@ -9,7 +9,7 @@ episode takes member ⌊u_k · n⌋ (see :mod:`popnavshift.episodes`).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from functools import cache
 
 import numpy as np
@@ -59,6 +59,31 @@ _SELECTORS: dict[str, Selector] = {
 }
 
 
+#: what each population holds, for the message that says one came out empty
+DEFINITIONS: dict[str, str] = {
+    "homogeneous": "the median profile",
+    "mixed": "every persona with a valid baseline response",
+    "high_time_pressure": f"personas whose time_pressure is {' or '.join(HIGH_TIME_PRESSURE)}",
+    "mobility_support": (f"personas whose health_mobility is {' or '.join(MOBILITY_SUPPORT)} "
+                         "or whose accessibility_needs is Motor"),
+    "high_caution": f"personas at or above the {HIGH_CAUTION_QUANTILE:.0%} quantile of caution",
+    "low_robot_trust": f"personas whose probe trust answer is at most {LOW_TRUST_MAX}",
+    "matched_base": "the matched_n personas with a valid answer in both variants",
+    "matched_deadline": "the matched_n personas with a valid answer in both variants",
+}
+
+
+def definition(name: str) -> str:
+    """What population ``name`` holds, in words (nulls and halves by their source)."""
+    spec = PopulationSpec.parse(name)
+    if spec.is_null:
+        of = "the matched pair" if spec.role == "swap_null" else repr(spec.base)
+        return f"a null replicate of {of}"
+    if spec.role == "half":
+        return f"a random half of {definition(spec.base)}"
+    return DEFINITIONS.get(name, name)
+
+
 def membership(
     personas: pd.DataFrame,
     responses: pd.DataFrame,
@@ -66,13 +91,16 @@ def membership(
     matched: Sequence[str],
     populations: Sequence[str] = POPULATIONS + SPLIT_HALVES,
     seed: int = 0,
+    required: Collection[str] | None = None,
 ) -> pd.DataFrame:
     """Rows (population, member, persona_id, variant), members sorted by id.
 
     Only baseline records with a valid response belong to cohorts; the matched
     pair uses the ``matched`` ids present in both variants. Null populations
     (:mod:`.nulls`: swap arms of the matched pair, size-matched subsets of mixed)
-    are built from the same records.
+    are built from the same records. A population that comes out empty is an error
+    when it is ``required`` (default: all of them) and left out otherwise: a cohort
+    a study does not run must not block it.
     """
     for name in populations:
         if not is_known(name):
@@ -115,10 +143,21 @@ def membership(
     rows = [(name, pid, variant) for name in populations for pid, variant in members(name)]
     df = pd.DataFrame(rows, columns=["population", "persona_id", "variant"])
     df["member"] = df.groupby("population", sort=False).cumcount().astype("int64")
-    empty = [p for p in populations if p not in set(df["population"])]
-    if empty:
-        raise InputError(f"population(s) {', '.join(empty)} have no members")
+    check_members(df["population"], populations if required is None else required)
     return df[["population", "member", "persona_id", "variant"]]
+
+
+def check_members(built: Collection[str], required: Collection[str]) -> None:
+    """InputError naming the first ``required`` population without members in ``built``
+    and what it would hold."""
+    have = set(built)
+    empty = [p for p in required if p not in have]
+    if empty:
+        more = f" (and {len(empty) - 1} more)" if len(empty) > 1 else ""
+        raise InputError(
+            f"population {empty[0]} has no members{more}: it holds {definition(empty[0])}",
+            hint="more personas (personas.n, matched_n) or another persona source; or "
+                 "drop it from the study's populations")
 
 
 def population_order(names) -> list[str]:

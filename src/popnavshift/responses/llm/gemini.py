@@ -30,7 +30,7 @@ from ...errors import ConfigError
 from ...redact import redact
 from ..prompt import SYSTEM_PROMPT, build_prompt
 from ..schema import response_json_schema
-from .retries import FinalError, Reply, RetryableError, check_status
+from .retries import MAX_RETRY_AFTER, FinalError, Reply, RetryableError, check_status
 from .settings import check_setting, env_key, is_http_url
 from .transport import REASK, LLMRespondent
 
@@ -68,6 +68,8 @@ class GeminiRespondent(LLMRespondent):
         max_tokens: int | None = None,
         ready_timeout: float = 30.0,
         max_consecutive_failures: int = 5,
+        max_retry_after: float = MAX_RETRY_AFTER,
+        deadline: float | None = None,
     ) -> None:
         super().__init__(
             model=model, temperature=temperature, seed=seed,
@@ -75,6 +77,7 @@ class GeminiRespondent(LLMRespondent):
             timeout=timeout, max_retries=max_retries, max_reasks=max_reasks,
             backoff_base=backoff_base, backoff_cap=backoff_cap, max_tokens=max_tokens,
             ready_timeout=ready_timeout, max_consecutive_failures=max_consecutive_failures,
+            max_retry_after=max_retry_after, deadline=deadline,
         )
         self.api_key_env = api_key_env
         self.base_url = base_url

@@ -23,7 +23,7 @@ from ..schema import response_json_schema
 from .cache import Identity
 from .identity import entry_identity, listing_details, listing_entry, props_details
 from .readiness import NotReady
-from .retries import Reply, RetryableError, check_status
+from .retries import MAX_RETRY_AFTER, Reply, RetryableError, check_status
 from .settings import check_setting, env_key, is_http_url
 from .transport import REASK, LLMRespondent
 
@@ -60,6 +60,8 @@ class OpenAIRespondent(LLMRespondent):
         max_tokens: int | None = None,
         ready_timeout: float = 30.0,
         max_consecutive_failures: int = 5,
+        max_retry_after: float = MAX_RETRY_AFTER,
+        deadline: float | None = None,
     ) -> None:
         super().__init__(
             model=model, temperature=temperature, seed=seed,
@@ -67,6 +69,7 @@ class OpenAIRespondent(LLMRespondent):
             timeout=timeout, max_retries=max_retries, max_reasks=max_reasks,
             backoff_base=backoff_base, backoff_cap=backoff_cap, max_tokens=max_tokens,
             ready_timeout=ready_timeout, max_consecutive_failures=max_consecutive_failures,
+            max_retry_after=max_retry_after, deadline=deadline,
         )
         self.base_url = base_url
         self.api_key_env = api_key_env

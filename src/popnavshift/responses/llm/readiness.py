@@ -20,7 +20,8 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 from ...errors import TransportError
@@ -29,6 +30,8 @@ log = logging.getLogger("popnavshift.responses.llm")
 
 #: longest pause between two readiness checks (s)
 MAX_READY_POLL = 2.0
+#: a readiness check still unanswered after this long (s) is said without -v
+WAIT_NOTICE = 5.0
 
 
 class NotReady(Exception):
@@ -40,17 +43,34 @@ class NotReady(Exception):
         self.fatal = fatal  # retrying cannot help (a rejected key)
 
 
+@contextmanager
+def announced(where: str) -> Iterator[None]:
+    """Say (without -v) what the run waits for once a call has gone unanswered for
+    :data:`WAIT_NOTICE` s: a hanging server otherwise says nothing for minutes."""
+    notice = threading.Timer(WAIT_NOTICE, log.warning,
+                             ("waiting for %s: no answer after %.0f s", where, WAIT_NOTICE))
+    notice.daemon = True
+    notice.start()
+    try:
+        yield
+    finally:
+        notice.cancel()
+
+
 def wait_until_ready(check: Callable[[], None], where: str, ready_timeout: float) -> None:
     """Call ``check`` until it returns (ready), for at most ``ready_timeout`` s.
 
     ``check`` raises :class:`NotReady` while the server is not ready. Raises
     TransportError naming ``where`` when the wait runs out or the failure is final.
     """
-    deadline = time.monotonic() + ready_timeout
+    started = time.monotonic()
+    deadline = started + ready_timeout
+    told = False  # the wait was said without -v (once it grew long)
     pause = 0.25
     while True:
         try:
-            check()
+            with announced(where):
+                check()
             return
         except NotReady as exc:
             left = deadline - time.monotonic()
@@ -63,8 +83,10 @@ def wait_until_ready(check: Callable[[], None], where: str, ready_timeout: float
                     f"{where} is not ready after waiting {ready_timeout:g} s: {exc.reason}",
                     hint="check the server and base_url; --ready-timeout sets the wait",
                 ) from None
-            log.info("%s not ready (%s); checking again in %.2f s", where, exc.reason,
-                     min(pause, left))
+            tell = not told and time.monotonic() - started >= WAIT_NOTICE
+            log.log(logging.WARNING if tell else logging.INFO,
+                    "waiting for %s (not ready: %s); up to %.0f s more", where, exc.reason, left)
+            told = told or tell
             time.sleep(min(pause, left))
             pause = min(MAX_READY_POLL, pause * 2)
 

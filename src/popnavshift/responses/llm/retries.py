@@ -24,8 +24,12 @@ from ...redact import redact
 
 log = logging.getLogger("popnavshift.responses.llm")
 
-#: Longest ``Retry-After`` honoured (s); a longer one is shortened to this.
-MAX_RETRY_AFTER = 300.0
+#: Longest ``Retry-After`` honoured by default (s); a longer one is shortened to this
+#: (a server asking for an hour would otherwise hold a run for ``max_retries`` hours).
+MAX_RETRY_AFTER = 60.0
+#: a failed call or a wait this long (s) is reported without ``-v``: a run must never sit
+#: silent on a hanging or rate-limiting server
+WAIT_NOTICE = 5.0
 RETRY_STATUSES = frozenset({408, 429, 500, 502, 503, 504})
 FATAL_STATUSES = frozenset({401, 403, 404})
 
@@ -103,16 +107,19 @@ def parse_retry_after(value: str | None) -> float | None:
 
 @dataclass(frozen=True)
 class RetryPolicy:
-    """Bounded exponential backoff; times in s."""
+    """Bounded exponential backoff; times in s. ``deadline`` bounds one request's calls
+    and waits together (None: only ``max_retries`` does)."""
 
     max_retries: int = 5
     backoff_base: float = 0.5
     backoff_cap: float = 30.0
+    max_retry_after: float = MAX_RETRY_AFTER
+    deadline: float | None = None
 
     def delay(self, retry: int, retry_after: float | None = None) -> float:
         """Wait before retry number ``retry`` (1-based); ``Retry-After`` wins when given."""
         if retry_after is not None:
-            return min(retry_after, MAX_RETRY_AFTER)
+            return min(retry_after, self.max_retry_after)
         return min(self.backoff_cap, self.backoff_base * 2 ** (retry - 1))
 
 
@@ -144,18 +151,27 @@ def send_with_retries(
     before a retry once ``stopped()`` (the run is being stopped). ``on_retry()`` is
     called before each retry (the progress lines count them as they happen)."""
     calls = 0
+    started = time.monotonic()
     while True:
         limiter.wait()
         calls += 1
+        sent = time.monotonic()
         try:
             return send(), calls
         except RetryableError as exc:
-            if calls > policy.max_retries or stopped():
-                spent = f"after {policy.max_retries} retries" if calls > policy.max_retries \
-                    else "(run stopped)"
-                raise TransportFailure(f"{exc.reason} {spent}", calls=calls) from None
             wait = policy.delay(calls, exc.retry_after)
-            log.info("%s; retry %d/%d in %.2f s", exc.reason, calls, policy.max_retries, wait)
+            spent = time.monotonic() - started
+            late = policy.deadline is not None and spent + wait > policy.deadline
+            if calls > policy.max_retries or stopped() or late:
+                why = (f"after {policy.max_retries} retries" if calls > policy.max_retries
+                       else "(run stopped)" if stopped()
+                       else f"(deadline of {policy.deadline:g} s reached after {spent:.0f} s)")
+                raise TransportFailure(f"{exc.reason} {why}", calls=calls) from None
+            took = time.monotonic() - sent
+            slow = wait >= WAIT_NOTICE or took >= WAIT_NOTICE
+            log.log(logging.WARNING if slow else logging.INFO, "%s; retry %d/%d in %.2f s%s",
+                    exc.reason, calls, policy.max_retries, wait,
+                    f" (the call took {took:.0f} s)" if took >= WAIT_NOTICE else "")
             on_retry()
             time.sleep(wait)
         except FinalError as exc:

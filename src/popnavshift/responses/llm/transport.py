@@ -43,8 +43,9 @@ from ..respondent import Answer, ProbeRequest, Progress, Respondent, sample_seed
 from ..schema import parse_answer
 from .cache import CacheStats, ResponseCache, request_key
 from .identity import Identity, served_identity
-from .readiness import Breaker, wait_until_ready
+from .readiness import Breaker, announced, wait_until_ready
 from .retries import (
+    MAX_RETRY_AFTER,
     RateLimiter,
     RetryPolicy,
     Session,
@@ -114,6 +115,8 @@ class LLMRespondent(Respondent):
         max_tokens: int | None = None,
         ready_timeout: float = 30.0,
         max_consecutive_failures: int = 5,
+        max_retry_after: float = MAX_RETRY_AFTER,
+        deadline: float | None = None,
     ) -> None:
         self._model = model
         self.temperature = temperature
@@ -129,6 +132,8 @@ class LLMRespondent(Respondent):
         self.max_tokens = max_tokens  # None: the server's default limit
         self.ready_timeout = ready_timeout
         self.max_consecutive_failures = max_consecutive_failures
+        self.max_retry_after = max_retry_after  # longest Retry-After honoured (s)
+        self.deadline = deadline  # one request's calls and waits together (s); None: no bound
         self.cache_stats: CacheStats | None = None  # counts of the last answer_all
         self._served_identity: str | None = None  # of the last answer_all's server
         #: what the server said of its model (file name, size, parameters, build) in the
@@ -198,6 +203,9 @@ class LLMRespondent(Respondent):
              "seconds ≥ 0"),
             ("max_consecutive_failures", is_int(self.max_consecutive_failures, 1),
              "an int ≥ 1"),
+            ("max_retry_after", is_pos(self.max_retry_after) or self.max_retry_after == 0,
+             "seconds ≥ 0"),
+            ("deadline", self.deadline is None or is_pos(self.deadline), "None or seconds > 0"),
         ]
         for name, ok, expected in checks:
             check_setting(ok, name, expected, getattr(self, name))
@@ -224,8 +232,9 @@ class LLMRespondent(Respondent):
         cache = ResponseCache(self.cache_path) if self.cache_path is not None else None
         self.cache_stats = None
         try:
-            self._served_identity, self.served_details = served_identity(
-                self._ask_identity, cache, self.endpoint, self.model, self.name)
+            with announced(f"{self.name} server {self.endpoint} (its model list)"):
+                self._served_identity, self.served_details = served_identity(
+                    self._ask_identity, cache, self.endpoint, self.model, self.name)
             keys = [self._key(self._body(r.persona, (), sample=r.sample), r.sample)
                     for r in requests]
             for i, (req, key) in enumerate(zip(requests, keys, strict=True)):
@@ -318,7 +327,8 @@ class LLMRespondent(Respondent):
         cut again): the request is sent again with twice the limit, or, when no limit
         was set (the server's own), the record fails with a hint to set one."""
         ans = Answer(req.persona_id, req.variant, tokens={"prompt": 0, "completion": 0, "total": 0})
-        policy = RetryPolicy(self.max_retries, self.backoff_base, self.backoff_cap)
+        policy = RetryPolicy(self.max_retries, self.backoff_base, self.backoff_cap,
+                             self.max_retry_after, self.deadline)
         reasks: list[tuple[str, str]] = []
         limit = self.max_tokens
         for attempt in range(self.max_reasks + 1):
