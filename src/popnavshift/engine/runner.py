@@ -31,7 +31,7 @@ from ..tables import RUN_KEY
 from ..version import __version__
 from .executors import execute
 from .plan import batches, count_runs, plan_study
-from .stages import STAGES, batch_inputs, stage_stamps
+from .stages import STAGES, Stage, batch_inputs, stage_stamps
 from .stamps import code_stamps
 from .store import RunStore, read_manifest, read_stamps, readable_parquet
 from .study import Study
@@ -100,11 +100,38 @@ def run_stages(folder: Path, s: PopulationSettings, show_progress: bool) -> list
         if done.get(stage.name) == want[stage.name] and intact and stage.after not in ran:
             continue
         with console.status(f"stage {stage.name}…"):
-            stage.run(folder, s, show_progress)
-        done[stage.name] = want[stage.name]
-        write_json(done, folder / "stages.json")
+            _run_stamped(folder, stage, s, show_progress, done, want[stage.name])
         ran.append(stage.name)
     return ran
+
+
+def run_stage(folder: Path, name: str, s: PopulationSettings, show_progress: bool = True,
+              stamp: bool = True) -> Any:
+    """Run the one stage ``name`` of :data:`.stages.STAGES` (a stage command such as
+    ``popnavshift probe``) and return its table; record the stamp ``run`` would give it
+    under ``s``, so that ``run`` with the same settings redoes nothing and with other
+    settings redoes it. Without its upstream stamp (a table from before stamps) or with
+    ``stamp`` False (settings the stamp cannot vouch for), the stage is left unstamped:
+    ``run`` redoes it rather than trust it."""
+    stage = next(st for st in STAGES if st.name == name)
+    done = read_stamps(folder)
+    known = stamp and (stage.after is None or stage.after in done)
+    return _run_stamped(folder, stage, s, show_progress, done,
+                        stage.stamp(s, done) if known else None)
+
+
+def _run_stamped(folder: Path, stage: Stage, s: PopulationSettings, show_progress: bool,
+                 done: dict[str, Any], stamp: str | None) -> Any:
+    """Run ``stage`` and record ``stamp`` (None: no stamp) in ``stages.json``. The old
+    stamp is dropped first: a stage that fails half-way (a table written, the next not)
+    must not pass for done."""
+    if done.pop(stage.name, None) is not None:
+        write_json(done, folder / "stages.json")
+    table = stage.run(folder, s, show_progress)
+    if stamp is not None:
+        done[stage.name] = stamp
+        write_json(done, folder / "stages.json")
+    return table
 
 
 def run_study(
