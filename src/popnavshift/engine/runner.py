@@ -29,10 +29,9 @@ from ..progress import console
 from ..responses.probes import PROBE_SET_HASH
 from ..tables import RUN_KEY
 from ..version import __version__
-from .executors import execute
-from .plan import batches, count_runs, plan_study
+from .batch_plan import plan_batches, run_plan
+from .plan import count_runs, plan_study
 from .stages import STAGES, Stage, batch_inputs, stage_stamps
-from .stamps import code_stamps
 from .store import RunStore, read_manifest, read_stamps, readable_parquet
 from .study import Study
 from .validate import validate_study
@@ -161,25 +160,18 @@ def run_study(
             f"built; available: {', '.join(sorted(built))}",
             hint="robustness labels need `respondent2` or a structure part",
         )
-    inputs = batch_inputs(read_stamps(folder))
-    code = code_stamps(r.controller for r in runs)
     store = RunStore(folder)
-    carried = store.carried(runs, inputs, code)  # in the tables already: not run again
-    all_batches = batches([r for r in runs if r.key not in carried], inputs, code)
-    todo = [b for b in all_batches if not store.is_done(b)]
+    plan = plan_batches(runs, store, batch_inputs(read_stamps(folder)))
     report.planned = len(runs)
-    report.reused = len(runs) - sum(len(b.runs) for b in todo)
-    complete = _manifest_intact(folder) and not all_batches
-    if not todo and not report.stages_run and complete and _holds_exactly(folder, runs):
+    report.reused = plan.reused
+    complete = _manifest_intact(folder) and not plan.batches
+    if not plan.todo and not report.stages_run and complete and _holds_exactly(folder, runs):
         report.seconds = time.perf_counter() - started
         return report
 
-    sim_started = time.perf_counter()
-    report.executed, report.simulated = execute(
-        todo, store, Context(populations, study.seed), workers,
-        executor_name=executor_name, address=address, show_progress=show_progress)
-    sim_seconds = time.perf_counter() - sim_started
-    n_runs, n_peds = store.compact_files(all_batches, runs, carried, inputs, code)
+    done = run_plan(plan, store, Context(populations, study.seed), workers,
+                    executor_name=executor_name, address=address, show_progress=show_progress)
+    report.executed, report.simulated = done.executed, done.simulated
     report.compacted = True
     report.seconds = time.perf_counter() - started
     write_manifest(
@@ -187,11 +179,11 @@ def run_study(
         study,
         settings,
         report,
-        sim_seconds,
+        done.seconds,
         workers,
         executor_name,
-        n_runs,
-        n_peds,
+        done.n_runs,
+        done.n_peds,
         count_runs(study, episodes),
     )
     return report
