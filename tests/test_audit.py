@@ -22,7 +22,6 @@ from popnavshift.analysis.audit_verdict import (
 )
 from popnavshift.engine.respondent_tables import RespondentTables
 from popnavshift.errors import ConfigError
-from popnavshift.hashing import stable_seed
 from popnavshift.personas.synthetic import generate_personas
 from popnavshift.personas.variants import matched_ids
 from popnavshift.profiles.mappings import build_profiles
@@ -30,26 +29,10 @@ from popnavshift.responses.collect import collect_responses
 from popnavshift.responses.probes import PROBE_IDS
 from popnavshift.responses.respondent import Answer, ProbeRequest, Progress, Respondent
 from popnavshift.responses.rule import RuleRespondent
-from popnavshift.responses.schema import LEVELS
-from popnavshift.tables import ACTIONS, BLOCK_ITEMS, Q_COLUMNS
+from popnavshift.tables import BLOCK_ITEMS, Q_COLUMNS
+from respondent_helpers import BlindRespondent, answers
 
 N_PERM, N_BOOT = 399, 400
-
-
-class BlindRespondent(Respondent):
-    """Valid, varied answers drawn from the persona id alone: it never reads a field."""
-
-    name = "blind"
-
-    def answer_all(self, requests: Sequence[ProbeRequest],
-                   progress: Progress | None = None) -> list[Answer]:
-        out = []
-        for r in requests:
-            rng = np.random.default_rng(stable_seed("blind", r.persona_id))
-            answer = {"actions": {p: ACTIONS[rng.integers(len(ACTIONS))] for p in PROBE_IDS},
-                      "block": {k: LEVELS[rng.integers(len(LEVELS))] for k in BLOCK_ITEMS}}
-            out.append(Answer(r.persona_id, r.variant, answer=answer))
-        return out
 
 
 class ConstantRespondent(Respondent):
@@ -67,12 +50,6 @@ class ConstantRespondent(Respondent):
 @pytest.fixture(scope="module")
 def personas() -> pd.DataFrame:
     return generate_personas(600, seed=1)
-
-
-def answers(personas: pd.DataFrame, respondent: Respondent) -> pd.DataFrame:
-    responses, invalid, _ = collect_responses(personas, respondent, matched_ids(personas, 202))
-    assert invalid.empty
-    return responses
 
 
 @pytest.fixture(scope="module")

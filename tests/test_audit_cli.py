@@ -8,6 +8,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from cli_helpers import assert_one_line_error, cli
 from popnavshift.analysis.audit_verdict import MIN_PERMUTATIONS, audit_tables
 from popnavshift.analysis.study import Analysis
 from popnavshift.engine.folder import StudyFolder
@@ -17,8 +18,7 @@ from popnavshift.profiles.mappings import build_profiles
 from popnavshift.report.page import render_report
 from popnavshift.responses.respondent import Respondent
 from popnavshift.responses.rule import RuleRespondent
-from test_audit import BlindRespondent, answers
-from test_cli import assert_one_line_error, cli
+from respondent_helpers import BlindRespondent, answers
 
 
 def write_folder(folder: Path, respondent: Respondent) -> Path:

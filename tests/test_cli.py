@@ -8,29 +8,12 @@ import sys
 import pandas as pd
 import pytest
 
+from cli_helpers import assert_one_line_error, cli
 from popnavshift.dictionary import STUDY_TABLES
 from popnavshift.tables import SPECS, check_table
 
 
-def cli(*args, cwd=None):
-    return subprocess.run(
-        [sys.executable, "-m", "popnavshift", *args],
-        capture_output=True,
-        text=True,
-        cwd=cwd,
-        timeout=300,
-    )
-
-
-def assert_one_line_error(proc, *needles):
-    assert proc.returncode == 2, proc.stderr
-    assert "Traceback" not in proc.stderr
-    err = [ln for ln in proc.stderr.splitlines() if ln.strip()]
-    assert len(err) == 1 and err[0].startswith("error:"), proc.stderr
-    for needle in needles:
-        assert needle in err[0], err[0]
-
-
+@pytest.mark.slow
 def test_quick_study_end_to_end(tmp_path):
     out = tmp_path / "s"
     proc = cli("run", "quick", "--out", str(out), "--no-report")

@@ -14,10 +14,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from cli_helpers import ONE_EPISODE, assert_one_line_error, cli, finished, tiny_study  # noqa: F401,E501  (fixture)
 from forked_cli import run_cli
 from llm_server import Reply, serve
-from test_cli import assert_one_line_error, cli
-from test_cli_mistakes import ONE_EPISODE, finished, tiny_study  # noqa: F401  (fixture)
 
 ESC = "\x1b]0;owned\x07\x1b[31m"
 EPISODE_ID = "head_on-w1.8-d0.06-s0.6-v1"

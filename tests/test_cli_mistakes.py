@@ -18,43 +18,12 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from cli_helpers import assert_one_line_error, cli, finished, tiny_study  # noqa: F401  (fixture)
 from llm_server import Reply, serve
-from test_cli import assert_one_line_error, cli
-
-TINY = """\
-name: tiny
-personas: {{source: {source}, n: {n}}}
-matched_n: 10
-{respondent}parts:
-  main:
-    populations: [mixed]
-    controllers: [{controller}]
-    backends: [{backend}]
-    mapping: {mapping}
-    episodes: {episodes}
-"""
-ONE_EPISODE = "{ids: [head_on-w1.8-d0.06-s0.6-v1]}"
-
-
-def tiny_study(folder: Path, *, source="synthetic", n=60, respondent="", controller="robot_orca",
-               backend="orca", mapping="A", episodes=ONE_EPISODE) -> Path:
-    path = folder / "tiny.yaml"
-    path.write_text(TINY.format(source=source, n=n, respondent=respondent, controller=controller,
-                                backend=backend, mapping=mapping, episodes=episodes))
-    return path
-
-
-@pytest.fixture(scope="module")
-def finished(tmp_path_factory) -> Path:
-    """A finished tiny study (2 runs); tests copy it before damaging it."""
-    root = tmp_path_factory.mktemp("finished")
-    proc = cli("run", str(tiny_study(root)), "--out", str(root / "s"), "--no-report", "-w", "1")
-    assert proc.returncode == 0, proc.stderr
-    return root / "s"
 
 
 @pytest.fixture
-def study(finished, tmp_path) -> Path:
+def study(finished, tmp_path) -> Path:  # noqa: F811
     shutil.copytree(finished, tmp_path / "s")
     return tmp_path / "s"
 

@@ -11,12 +11,12 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
+from engine_helpers import TINY, tables, with_controllers
 from popnavshift.engine import compact, store
 from popnavshift.engine.folder import read_categorical
 from popnavshift.engine.runner import run_study
 from popnavshift.engine.study import study_from_dict
 from popnavshift.tables import RUN_KEY
-from test_engine import TINY, _with_controllers, tables
 
 
 @pytest.fixture(scope="module")
@@ -64,7 +64,7 @@ def test_streamed_tables_equal_the_whole_table_compaction(reference, tmp_path, t
 
 def test_carried_runs_merge_in_order_across_chunks(reference, tmp_path, tiny_chunks):
     folder = tmp_path / "grow"
-    run_study(study_from_dict(_with_controllers("robot_orca")), folder, workers=1,
+    run_study(study_from_dict(with_controllers("robot_orca")), folder, workers=1,
               show_progress=False)
     second = run_study(study_from_dict(TINY), folder, workers=1, show_progress=False)
     assert second.executed == 6 * 3 and second.reused == 6 * 3 * 2  # 36 runs carried

@@ -13,35 +13,11 @@ import pandas as pd
 import pytest
 import yaml
 
+from engine_helpers import TINY, tables, with_controllers
 from popnavshift.engine.plan import batches, count_runs, plan_study
 from popnavshift.engine.runner import run_study
 from popnavshift.engine.study import load_study, study_from_dict
 from popnavshift.errors import ConfigError, UnknownNameError
-
-TINY = {
-    "name": "tiny",
-    "seed": 0,
-    "personas": {"source": "synthetic", "n": 300},
-    "matched_n": 40,
-    "mappings": ["A"],
-    "parts": {
-        "main": {
-            "populations": ["mixed", "matched_base", "matched_deadline"],
-            "controllers": ["robot_orca", "reactive"],
-            "episodes": {
-                "scenes": ["sidewalk", "head_on", "bottleneck"],
-                "widths": [1.8, 3.0],
-                "densities": [0.06],
-                "robot_speeds": [1.0],
-                "variants": [1],
-            },
-        }
-    },
-}
-
-
-def tables(folder: Path) -> tuple[pd.DataFrame, pd.DataFrame]:
-    return pd.read_parquet(folder / "runs.parquet"), pd.read_parquet(folder / "pedestrians.parquet")
 
 
 @pytest.fixture(scope="module")
@@ -259,15 +235,9 @@ def test_a_part_repeats_on_extra_seed_sets_and_the_report_shows_the_spread(tmp_p
         get_episode("sidewalk-w1.8-d0.12-s0.6-v1@sx")
 
 
-def _with_controllers(*controllers: str) -> dict:
-    study = yaml.safe_load(yaml.safe_dump(TINY))
-    study["parts"]["main"]["controllers"] = list(controllers)
-    return study
-
-
 def test_adding_a_controller_runs_that_controller_alone(tmp_path, reference):
     folder = tmp_path / "grow"
-    first = run_study(study_from_dict(_with_controllers("robot_orca")), folder, workers=1,
+    first = run_study(study_from_dict(with_controllers("robot_orca")), folder, workers=1,
                       show_progress=False)
     assert first.executed == 6 * 3 * 2  # robot_orca and the no-robot baseline
     second = run_study(study_from_dict(TINY), folder, workers=1, show_progress=False)
@@ -275,7 +245,7 @@ def test_adding_a_controller_runs_that_controller_alone(tmp_path, reference):
     for ours, ref in zip(tables(folder), tables(reference), strict=True):
         pd.testing.assert_frame_equal(ours, ref)
     # dropping it again runs nothing and leaves the tables of the smaller study
-    third = run_study(study_from_dict(_with_controllers("robot_orca")), folder, workers=1,
+    third = run_study(study_from_dict(with_controllers("robot_orca")), folder, workers=1,
                       show_progress=False)
     assert third.executed == 0 and not third.nothing_to_do  # its tables were rewritten
     runs, peds = tables(folder)

@@ -13,6 +13,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from cli_helpers import cli, tiny_study
 from llm_server import Reply, make_requests, serve, valid_text
 from popnavshift.engine.study import study_from_dict
 from popnavshift.errors import ConfigError, RespondentError, TransportError
@@ -22,8 +23,6 @@ from popnavshift.responses.collect import collect_responses
 from popnavshift.responses.llm import OpenAIRespondent
 from popnavshift.responses.respondent import sample_seed
 from popnavshift.responses.schema import parse_answer
-from test_cli import cli
-from test_cli_mistakes import tiny_study
 
 MACHINE_PATH = "/home/someone/models/qwen2.5-0.5b-instruct-q4_k_m.gguf"
 

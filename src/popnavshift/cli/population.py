@@ -81,6 +81,7 @@ def personas(
     From a release, minors (by age_bracket) are never sampled; personas.json records
     what each step dropped and the source mix.
     """
+    from ..engine.runner import run_stage
     from ..pipeline import run_personas
 
     target = out if out.suffix == ".parquet" else out / "personas.parquet"
@@ -95,7 +96,10 @@ def personas(
         verify_checksums=verify_checksums,
     )
     with study_lock(study_folder):
-        df = run_personas(study_folder, settings, target)
+        if target == study_folder / "personas.parquet":  # the study's table: stamped
+            df = run_stage(study_folder, "personas", settings)
+        else:
+            df = run_personas(study_folder, settings, target)
     mix = ", ".join(f"{k} {v}" for k, v in df["source"].value_counts().sort_index().items())
     console.print(f"[green]{len(df)} personas[/] ({say(mix)}) → {say(target)}")
 
@@ -177,7 +181,7 @@ def probe(
     pressure set to Deadline. Network respondents cache in OUT/cache/llm.sqlite,
     so a second run makes no calls. Invalid records are listed, never dropped.
     """
-    from ..pipeline import run_responses
+    from ..engine.runner import run_stage
 
     out = folder(out)
     opts = _respondent_options(
@@ -193,7 +197,7 @@ def probe(
                   samples=samples)
     started = time.perf_counter()
     with study_lock(out):
-        df = run_responses(out, s, show_progress=True)
+        df = run_stage(out, "responses", s, stamp=_seed_agrees(out, seed))
     stats = json.loads((out / "responses.json").read_text())
     console.print(
         f"[green]{len(df)} valid responses[/]"
@@ -220,12 +224,13 @@ def profiles(
     ] = None,
 ) -> None:
     """Map responses to the 7 motion parameters; write profiles.parquet."""
-    from ..pipeline import run_profiles
+    from ..engine.runner import run_stage
 
     out = folder(out)
     maps = tuple(mapping) if mapping else ("A", "B", "C", "D")
     with study_lock(out):
-        df = run_profiles(out, _settings(mappings=maps))
+        settings = _settings(mappings=maps, respondent2=_second_respondent(out))
+        df = run_stage(out, "profiles", settings)
     console.print(
         f"[green]{len(df)} profiles[/] (mappings {say(', '.join(maps))}) → "
         f"{say(out / 'profiles.parquet')}"
@@ -239,24 +244,55 @@ def populations(
     seed: Annotated[int, typer.Option(min=0, help="Seed of the matched sample.")] = 0,
 ) -> None:
     """Build the 8 population conditions; write populations.parquet and profile figures."""
-    from ..pipeline import run_populations
+    from ..engine.runner import run_stage
 
     out = folder(out)
-    profiles_path = out / "profiles.parquet"
-    maps = _mappings_in(profiles_path)
+    sets = _profile_sets_in(out / "profiles.parquet")
     with study_lock(out):
-        table = run_populations(out, _settings(matched_n=matched_n, seed=seed, mappings=maps))
+        table = run_stage(out, "populations", _settings(matched_n=matched_n, seed=seed, **sets),
+                          stamp=_seed_agrees(out, seed))
     print_sizes(table)
     console.print(f"→ {say(out / 'populations.parquet')}, figures in {say(out / 'figures')}")
 
 
-def _mappings_in(path: Path) -> tuple[str, ...]:
+def _profile_sets_in(path: Path) -> dict[str, Any]:
+    """The settings of the profile sets in ``path`` that the populations stage reads: the
+    structure sets and a second respondent's set are built as ``run`` builds them (the
+    profiles' stamp covers them, the populations' does not)."""
     from ..pipeline import read_table
+    from ..populations.perturb import ProfileSet
 
     found = sorted(set(read_table(path, "profiles")["mapping"]))
     if "A" not in found:
         raise ConfigError(f"{path} has no Mapping A profiles (membership is defined by Mapping A)")
-    return tuple(found)
+    sets = [ProfileSet.parse(m) for m in found]
+    second = [p.arg for p in sets if p.perturbation == "second_respondent"]
+    return {"mappings": tuple(p.label for p in sets if p.perturbation == "none"),
+            "structure": any(p.is_structure for p in sets),
+            "respondent2": second[0] if second else None}
+
+
+def _second_respondent(out: Path) -> str | None:
+    """The second respondent whose answers the folder holds (``responses.json``), whose
+    profile set ``run`` builds beside the mappings: the responses' stamp covers it, the
+    profiles' does not."""
+    from ..populations.perturb import ProfileSet
+
+    try:
+        second = json.loads((out / "responses.json").read_text("utf-8")).get("second")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return ProfileSet.parse(second["label"]).arg if isinstance(second, dict) else None
+
+
+def _seed_agrees(out: Path, seed: int) -> bool:
+    """Whether the folder's personas were drawn with ``seed``. ``run`` uses one seed for
+    the personas, the matched sample and the nulls, and only the personas' stamp covers
+    it: a later stage run with another seed gets no stamp (``run`` redoes it)."""
+    try:
+        return json.loads((out / "personas.json").read_text("utf-8")).get("seed") == seed
+    except (OSError, ValueError, AttributeError):
+        return False
 
 
 def print_sizes(table) -> None:

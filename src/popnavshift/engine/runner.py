@@ -29,10 +29,9 @@ from ..progress import console
 from ..responses.probes import PROBE_SET_HASH
 from ..tables import RUN_KEY
 from ..version import __version__
-from .executors import execute
-from .plan import batches, count_runs, plan_study
-from .stages import STAGES, batch_inputs, stage_stamps
-from .stamps import code_stamps
+from .batch_plan import plan_batches, run_plan
+from .plan import count_runs, plan_study
+from .stages import STAGES, Stage, batch_inputs, stage_stamps
 from .store import RunStore, read_manifest, read_stamps, readable_parquet
 from .study import Study
 from .validate import validate_study
@@ -100,11 +99,38 @@ def run_stages(folder: Path, s: PopulationSettings, show_progress: bool) -> list
         if done.get(stage.name) == want[stage.name] and intact and stage.after not in ran:
             continue
         with console.status(f"stage {stage.name}…"):
-            stage.run(folder, s, show_progress)
-        done[stage.name] = want[stage.name]
-        write_json(done, folder / "stages.json")
+            _run_stamped(folder, stage, s, show_progress, done, want[stage.name])
         ran.append(stage.name)
     return ran
+
+
+def run_stage(folder: Path, name: str, s: PopulationSettings, show_progress: bool = True,
+              stamp: bool = True) -> Any:
+    """Run the one stage ``name`` of :data:`.stages.STAGES` (a stage command such as
+    ``popnavshift probe``) and return its table; record the stamp ``run`` would give it
+    under ``s``, so that ``run`` with the same settings redoes nothing and with other
+    settings redoes it. Without its upstream stamp (a table from before stamps) or with
+    ``stamp`` False (settings the stamp cannot vouch for), the stage is left unstamped:
+    ``run`` redoes it rather than trust it."""
+    stage = next(st for st in STAGES if st.name == name)
+    done = read_stamps(folder)
+    known = stamp and (stage.after is None or stage.after in done)
+    return _run_stamped(folder, stage, s, show_progress, done,
+                        stage.stamp(s, done) if known else None)
+
+
+def _run_stamped(folder: Path, stage: Stage, s: PopulationSettings, show_progress: bool,
+                 done: dict[str, Any], stamp: str | None) -> Any:
+    """Run ``stage`` and record ``stamp`` (None: no stamp) in ``stages.json``. The old
+    stamp is dropped first: a stage that fails half-way (a table written, the next not)
+    must not pass for done."""
+    if done.pop(stage.name, None) is not None:
+        write_json(done, folder / "stages.json")
+    table = stage.run(folder, s, show_progress)
+    if stamp is not None:
+        done[stage.name] = stamp
+        write_json(done, folder / "stages.json")
+    return table
 
 
 def run_study(
@@ -134,25 +160,18 @@ def run_study(
             f"built; available: {', '.join(sorted(built))}",
             hint="robustness labels need `respondent2` or a structure part",
         )
-    inputs = batch_inputs(read_stamps(folder))
-    code = code_stamps(r.controller for r in runs)
     store = RunStore(folder)
-    carried = store.carried(runs, inputs, code)  # in the tables already: not run again
-    all_batches = batches([r for r in runs if r.key not in carried], inputs, code)
-    todo = [b for b in all_batches if not store.is_done(b)]
+    plan = plan_batches(runs, store, batch_inputs(read_stamps(folder)))
     report.planned = len(runs)
-    report.reused = len(runs) - sum(len(b.runs) for b in todo)
-    complete = _manifest_intact(folder) and not all_batches
-    if not todo and not report.stages_run and complete and _holds_exactly(folder, runs):
+    report.reused = plan.reused
+    complete = _manifest_intact(folder) and not plan.batches
+    if not plan.todo and not report.stages_run and complete and _holds_exactly(folder, runs):
         report.seconds = time.perf_counter() - started
         return report
 
-    sim_started = time.perf_counter()
-    report.executed, report.simulated = execute(
-        todo, store, Context(populations, study.seed), workers,
-        executor_name=executor_name, address=address, show_progress=show_progress)
-    sim_seconds = time.perf_counter() - sim_started
-    n_runs, n_peds = store.compact_files(all_batches, runs, carried, inputs, code)
+    done = run_plan(plan, store, Context(populations, study.seed), workers,
+                    executor_name=executor_name, address=address, show_progress=show_progress)
+    report.executed, report.simulated = done.executed, done.simulated
     report.compacted = True
     report.seconds = time.perf_counter() - started
     write_manifest(
@@ -160,11 +179,11 @@ def run_study(
         study,
         settings,
         report,
-        sim_seconds,
+        done.seconds,
         workers,
         executor_name,
-        n_runs,
-        n_peds,
+        done.n_runs,
+        done.n_peds,
         count_runs(study, episodes),
     )
     return report

@@ -37,12 +37,11 @@ import pandas as pd
 
 from ..analysis import episode_cells
 from ..analysis.replicates import seed_sets
-from ..engine.executors import execute
-from ..engine.plan import batches, plan_study
+from ..engine.batch_plan import plan_batches, run_plan
+from ..engine.plan import plan_study
 from ..engine.rebuild import rebuild_run
 from ..engine.runner import run_study
 from ..engine.stages import batch_inputs
-from ..engine.stamps import code_stamps
 from ..engine.store import RunStore, read_stamps
 from ..engine.study import Study
 from ..engine.worker import Context
@@ -184,22 +183,17 @@ def _run_extra(study: Study, part_name: str, controllers: tuple[str, ...], base_
                                                      "baseline": no_robot})
     runs = plan_study(study.model_copy(update={"parts": {part_name: part}}),
                       all_episodes(seed=study.seed))
-    # the runner's batch ids: a changed population or episode draw, an edited
-    # controller (which keeps its name) or simulator gives new ones
-    all_batches = batches(runs, batch_inputs(read_stamps(base_folder)),
-                          code_stamps(r.controller for r in runs))
     store = _SharedShards(base_folder, out)
-    todo = [b for b in all_batches if not store.is_done(b)]
-    n_todo = sum(len(b.runs) for b in todo)
-    reused = len(runs) - n_todo
-    say(f"{', '.join((NO_ROBOT,) * no_robot + controllers)}: {reused:,} runs reused, "
+    # the runner's batches and ids: its shards are reused, and it reuses these
+    plan = plan_batches(runs, store, batch_inputs(read_stamps(base_folder)), carry=False)
+    n_todo = len(runs) - plan.reused
+    say(f"{', '.join((NO_ROBOT,) * no_robot + controllers)}: {plan.reused:,} runs reused, "
         f"{n_todo:,} to run")
-    if todo:
-        populations = read_table(base_folder / "populations.parquet", "populations")
-        execute(todo, store, Context(populations, study.seed), workers,
-                show_progress=show_progress)
+    populations = read_table(base_folder / "populations.parquet", "populations")
     out.mkdir(parents=True, exist_ok=True)
-    return store.compact(all_batches), reused, n_todo
+    run_plan(plan, store, Context(populations, study.seed), workers, show_progress=show_progress)
+    tables = (pd.read_parquet(out / "runs.parquet"), pd.read_parquet(out / "pedestrians.parquet"))
+    return tables, plan.reused, n_todo
 
 
 def _tables(study: Study, part_name: str, controllers: tuple[str, ...], base_folder: Path,
