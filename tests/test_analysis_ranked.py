@@ -102,7 +102,7 @@ RANKED_METRICS = (*RANKED_METRICS, RankedMetric(
 RECIPE = {"analysis/ranked.py": [("\nRANKED: dict[str, RankedMetric]",
                                   MAX_DELAY + "\nRANKED: dict[str, RankedMetric]")]}
 EPISODES = {"scenes": ["sidewalk"], "widths": [1.8, 4.2], "densities": [0.06],
-            "robot_speeds": [1.0], "variants": [1, 2]}
+            "robot_speeds": [1.0], "variants": [1]}
 POPULATIONS = ["homogeneous", "mixed", "matched_base", "matched_deadline"]
 TINY = {"name": "recipe", "seed": 0, "personas": {"source": "synthetic", "n": 300},
         "matched_n": 60,
