@@ -83,7 +83,7 @@ def step(name: str, cmd: list[str], times: dict[str, float], log: Path | None = 
     times[name] = round(time.perf_counter() - t0, 1)
     if log is not None:
         log.write_text(done.stdout + done.stderr)
-    if done.returncode not in (0, 1):  # audit --strict exits 1 for a flagged respondent
+    if done.returncode != 0:
         raise SystemExit(f"{' '.join(cmd[2:])} failed ({done.returncode}):\n{done.stderr}")
     return done.stdout
 
@@ -128,9 +128,8 @@ def audit_figures(folder: Path) -> dict:
         out["manipulation"] = {r.target: [round(r.shift, 3), round(r.ci_low, 3),
                                           round(r.ci_high, 3), r.outcome]
                                for r in m[m["target"] != "actions"].itertuples(index=False)}
-    for name in ("audit_retest", "audit_reproducibility"):
-        if name in t:  # test–retest, when the study drew several samples per persona
-            out[name] = json.loads(t[name].to_json(orient="records"))
+    if "audit_retest" in t:  # test–retest, when the study drew several samples per persona
+        out["audit_retest"] = json.loads(t["audit_retest"].to_json(orient="records"))
     responses = pd.read_parquet(folder / "responses.parquet")
     for column in ("served_model", "sample"):
         if column in responses:
