@@ -180,3 +180,17 @@ def test_a_study_with_two_samples_end_to_end(tmp_path):
     audit = cli("audit", str(tmp_path / "s"), "--permutations", "319", "--boot", "100")
     assert audit.returncode == 0, audit.stderr
     assert "test–retest: 2 samples of 40 records" in audit.stderr
+
+
+def test_samples_without_a_seed_are_refused_by_the_study_check_before_any_stage():
+    from popnavshift.engine.validate import validate_study
+    from popnavshift.episodes.specs import all_episodes
+
+    data = {"name": "s", "parts": {"main": {"populations": ["mixed"]}},
+            "respondent": {"name": "openai", "samples": 2,
+                           "options": {"seed": None, "api_key_env": None,
+                                       "base_url": "http://127.0.0.1:9/v1"}}}
+    with pytest.raises(ConfigError, match="samples 2 need a seed"):
+        validate_study(study_from_dict(data), all_episodes(0))
+    data["respondent"]["samples"] = 1
+    validate_study(study_from_dict(data), all_episodes(0))  # one sample needs none

@@ -26,7 +26,7 @@ from ..responses.respondent import RESPONDENTS
 from ..sim.backends import BACKENDS
 from ..sim.controllers import CONTROLLERS
 from .plan import select_episodes
-from .study import EpisodeSelection, Study
+from .study import EpisodeSelection, RespondentSpec, Study
 
 #: selection field → (episode attribute, the word used in messages)
 GRID_FIELDS = {
@@ -106,11 +106,9 @@ def _check_names(study: Study) -> None:
         for mapping in part.mappings:
             if mapping not in known:
                 raise UnknownNameError(f"mapping (part {name})", mapping, known)
-    _check_respondent(study.respondent.name, study.respondent.options,
-                      f"{study.where}: respondent")
+    _check_respondent(study.respondent, f"{study.where}: respondent")
     if study.respondent2 is not None:
-        _check_respondent(study.respondent2.name, study.respondent2.options,
-                          f"{study.where}: respondent2")
+        _check_respondent(study.respondent2, f"{study.where}: respondent2")
 
 
 def known_mappings(study: Study) -> list[str]:
@@ -126,10 +124,14 @@ def known_mappings(study: Study) -> list[str]:
     return sorted({s.label for s in sets})
 
 
-def _check_respondent(name: str, options: dict[str, Any], where: str) -> None:
-    """Build the respondent (no call is made) and check its settings."""
-    _check_finite(options, f"{where}.options")
-    respondent = RESPONDENTS.make(name, **options)
+def _check_respondent(spec: RespondentSpec, where: str) -> None:
+    """Build the respondent (no call is made) and check its settings, here rather than when
+    the probe stage starts: ``run --samples`` sets the samples after the file was read."""
+    _check_finite(spec.options, f"{where}.options")
+    respondent = RESPONDENTS.make(spec.name, **spec.options)
+    if spec.samples > 1 and getattr(respondent, "seed", 0) is None:
+        raise ConfigError(f"{where}: samples {spec.samples} need a seed (options.seed is "
+                          "null, so every sample would be one request asked again)")
     validate = getattr(respondent, "validate", None)
     if callable(validate):
         validate()
