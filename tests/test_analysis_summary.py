@@ -169,14 +169,14 @@ def rates(robot, mean, tail):
 
 
 def test_single_findings_hold_and_fail():
-    assert burden_exceeds_time(rates(0.09, 0.22, 0.24), "x").holds
-    assert not burden_exceeds_time(rates(0.09, 0.22, 0.05), "x").holds
-    assert completed_lower(rates(0.09, 0.26, 0.25), rates(0.05, 0.21, 0.22), "x").holds
-    assert not completed_lower(rates(0.09, 0.26, 0.25), rates(0.05, 0.27, 0.22), "x").holds
+    assert burden_exceeds_time(rates(0.09, 0.22, 0.24)).holds
+    assert not burden_exceeds_time(rates(0.09, 0.22, 0.05)).holds
+    assert completed_lower(rates(0.09, 0.26, 0.25), rates(0.05, 0.21, 0.22)).holds
+    assert not completed_lower(rates(0.09, 0.26, 0.25), rates(0.05, 0.27, 0.22)).holds
     w = pd.DataFrame({"width": [4.2, 1.8, 2.4, 3.0], "sensitivity": [0.5, 2.2, 1.0, 1.2]})
-    f = width_decreases(w, "x")
+    f = width_decreases(w)
     assert f.holds and f.numbers["monotonic"] is False and f.numbers[1.8] == 2.2
-    assert not width_decreases(w.assign(sensitivity=[3.0, 2.2, 1.0, 1.2]), "x").holds
+    assert not width_decreases(w.assign(sensitivity=[3.0, 2.2, 1.0, 1.2])).holds
     outcomes = pd.DataFrame({"mean_delay": [1.25, 0.65], "worst_decile": [5.13, 2.80]},
                             index=["reactive", "robot_orca"])
     assert tail_ratio(outcomes).holds

@@ -15,8 +15,6 @@ than robot time") are checked against their nulls in :mod:`.nulls`
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable
-from functools import partial
 
 import numpy as np
 import pandas as pd
@@ -25,9 +23,8 @@ from ..paper import PAPER_CONTROLLERS
 from ..populations.identity import MATCHED_PAIR
 from ..tables import NO_ROBOT
 from .delay import CELL_KEY, cell_metrics, episode_cells, paired_delays
-from .findings import TAIL_BAND, WIDTH_SCENES
+from .findings import CLAIM_BY_KEY, CLAIMS, WIDTH_SCENES
 from .nulls import centred_interval
-from .paper_reference import MATCHED_CHANGE_SIGN
 from .resample import build_design, episode_weights, resampled_metrics
 from .significance import LEVEL
 from .verdicts import ABOVE, BELOW, SMALL
@@ -35,66 +32,29 @@ from .verdicts import ABOVE, BELOW, SMALL
 METRICS_NEEDED = ("mean_delay", "worst_decile", "success_share", "timeout_share")
 
 
-def _controller_means(cells: pd.DataFrame, values: np.ndarray) -> dict[str, np.ndarray]:
-    """Per controller: the mean over its (cell, population) rows of ``values``, (R,) for
-    the point estimate or (B, R) for the resamples; NaN-skipping."""
-    out = {}
-    for ctrl, idx in cells.groupby("controller").indices.items():
-        with np.errstate(all="ignore"):
-            out[ctrl] = np.nanmean(values[..., idx], axis=-1)
-    return out
-
-
-def _width_gap(cells: pd.DataFrame, values: np.ndarray, scenes: tuple[str, ...]) -> np.ndarray:
-    """Mean population range of mean delay at the narrowest minus the widest width [s],
-    over the (cell, controller) rows of ``scenes`` where every population has a value."""
-    sel = cells["scene"].isin(scenes).to_numpy()
-    sub = cells[sel].reset_index(drop=True).assign(i=np.flatnonzero(sel))
-    pos = sub.pivot(index=["backend", "mapping", "cell", "controller"], columns="population",
-                    values="i")
-    widths = sub.drop_duplicates(["backend", "mapping", "cell"]).set_index(
-        ["backend", "mapping", "cell"])["width"]
-    pos = pos.dropna()
-    w = widths.reindex(pos.index.droplevel("controller")).to_numpy(float)
-    idx = pos.to_numpy(np.int64)
-    v = values[..., idx]  # (..., rows, populations)
-    with np.errstate(all="ignore"):
-        rng = np.nanmax(v, axis=-1) - np.nanmin(v, axis=-1)
-        rng = np.where(np.isnan(v).any(axis=-1), np.nan, rng)
-        lo, hi = w.min(), w.max()
-        return np.nanmean(rng[..., w == lo], axis=-1) - np.nanmean(rng[..., w == hi], axis=-1)
-
-
-def _matched_change(cells: pd.DataFrame, values: np.ndarray, controller: str) -> np.ndarray:
-    """Mean over units of deadline − base mean delay for ``controller`` [s]."""
-    sub = cells[cells["controller"] == controller]
-    pos = sub.assign(i=sub.index).pivot(index=["backend", "mapping", "cell"],
-                                        columns="population", values="i")
-    pos = pos.reindex(columns=list(MATCHED_PAIR)).dropna().to_numpy(np.int64)
-    with np.errstate(all="ignore"):
-        return np.nanmean(values[..., pos[:, 1]] - values[..., pos[:, 0]], axis=-1)
-
-
-def _matched_change_of(cells: pd.DataFrame, controller: str, vals: dict) -> np.ndarray:
-    return _matched_change(cells, vals["mean_delay"], controller)
-
-
-def _tail_ratio_of(cells: pd.DataFrame, controller: str, vals: dict) -> np.ndarray:
-    worst = _controller_means(cells, vals["worst_decile"])[controller]
-    return worst / _controller_means(cells, vals["mean_delay"])[controller]
+def _inputs_present(cells: pd.DataFrame) -> set[str]:
+    """The :attr:`.findings.Claim.needs` the cell table can serve an interval for."""
+    ctrls, pops = set(cells["controller"]), set(cells["population"])
+    have = {"pairs", "delays"}
+    if set(PAPER_CONTROLLERS) <= ctrls:
+        have.add("controllers")
+    if set(MATCHED_PAIR) <= pops:
+        have.add("matched")
+    if len(pops) >= 2 and cells["scene"].isin(WIDTH_SCENES).any():
+        have.add("width:pooled")
+    return have
 
 
 def surviving_findings(runs: pd.DataFrame, pedestrians: pd.DataFrame, *,
                        rng: np.random.Generator, n_boot: int = 1000,
                        level: float = LEVEL) -> pd.DataFrame:
-    """The paper's controller, width, tail and matched-direction findings with intervals.
+    """The paper's findings that have an :class:`.findings.Interval`, with intervals.
 
-    One row per finding: ``finding`` (the key of the paper's finding it checks, as
-    :class:`popnavshift.analysis.findings.Finding`), ``statement``, ``statistic`` (what
-    is estimated),
-    ``estimate``, ``ci_low``, ``ci_high``, ``holds`` (on the point estimate, as in
-    :func:`popnavshift.analysis.findings.paper_findings`) and ``survives`` (the whole
-    interval agrees). Findings whose inputs are absent are left out.
+    One row per finding (per controller for a per-controller one): ``finding`` (its
+    ``Claim.key``), ``controller`` (or empty), ``statement``, ``statistic`` (what is
+    estimated), ``estimate``, ``ci_low``, ``ci_high``, ``holds`` (the estimate is in the
+    claim's band) and ``survives`` (the whole interval is). Findings whose inputs are
+    absent are left out.
     """
     paired = paired_delays(pedestrians)
     cells = cell_metrics(runs, paired)
@@ -102,72 +62,28 @@ def surviving_findings(runs: pd.DataFrame, pedestrians: pd.DataFrame, *,
     boot = resampled_metrics(design, episode_weights(design, n_boot, rng), METRICS_NEEDED)
     cells = cells.assign(timeout_share=design_share(runs, cells, "timeout"))
     point = {m: cells[m].to_numpy(float) for m in METRICS_NEEDED}
-    checks: list[tuple[str, str, Callable[[dict], np.ndarray], tuple[float, float], str]] = []
-    ctrls = set(cells["controller"])
-
-    def extreme(column: str, ctrl: str, highest: bool) -> Callable[[dict], np.ndarray]:
-        def f(vals: dict) -> np.ndarray:
-            means = _controller_means(cells, vals[column])
-            others = np.nanmax if highest else np.nanmin
-            rest = others(np.stack([v for c, v in means.items() if c != ctrl]), axis=0)
-            return means[ctrl] - rest if highest else rest - means[ctrl]
-        return f
-
-    if set(PAPER_CONTROLLERS) <= ctrls:
-        checks += [
-            ("Reactive has the highest success rate", "success share gap to the next [pp]",
-             lambda v: 100 * extreme("success_share", "reactive", True)(v), (0, np.inf),
-             "extreme:reactive:success_pct"),
-            ("Early yielding has the highest timeout rate", "timeout share gap [pp]",
-             lambda v: 100 * extreme("timeout_share", "early_yield", True)(v), (0, np.inf),
-             "extreme:early_yield:timeout_pct"),
-            ("Robot-ORCA has the lowest mean delay", "next lowest minus Robot-ORCA [s]",
-             extreme("mean_delay", "robot_orca", False), (0, np.inf),
-             "extreme:robot_orca:mean_delay"),
-            ("Robot-ORCA has the lowest worst-decile delay", "next lowest minus Robot-ORCA [s]",
-             extreme("worst_decile", "robot_orca", False), (0, np.inf),
-             "extreme:robot_orca:worst_decile"),
-            ("Early yielding has a lower mean delay than reactive", "reactive − early yield [s]",
-             lambda v: (lambda m: m["reactive"] - m["early_yield"])(
-                 _controller_means(cells, v["mean_delay"])), (0, np.inf),
-             "extreme:early_yield:mean_delay"),
-        ]
-    for ctrl, sign in MATCHED_CHANGE_SIGN.items():
-        if ctrl in ctrls and set(MATCHED_PAIR) <= set(cells["population"]):
-            word = "lowers" if sign < 0 else "raises"
-            checks.append((f"The matched deadline shift {word} {ctrl}'s mean delay",
-                           "deadline − base mean delay [s]",
-                           partial(_matched_change_of, cells, ctrl),
-                           (-np.inf, 0) if sign < 0 else (0, np.inf), "matched_direction"))
-    if cells["population"].nunique() >= 2 and cells["scene"].isin(WIDTH_SCENES).any():
-        checks.append(("Population sensitivity is larger at the narrowest width (sidewalks and "
-                       "bottlenecks)", "sensitivity at narrowest − widest width [s]",
-                       lambda v: _width_gap(cells, v["mean_delay"], WIDTH_SCENES), (0, np.inf),
-                       "width:pooled"))
-    for ctrl in sorted(ctrls):
-        checks.append((f"Worst-decile delay is about 4× the mean delay ({ctrl})",
-                       "worst decile / mean delay",
-                       partial(_tail_ratio_of, cells, ctrl), TAIL_BAND, "tail_ratio"))
+    have, ctrls = _inputs_present(cells), set(cells["controller"])
     n_episodes = float(design.episodes.groupby("cell").size().median())
     rows = []
-    for statement, statistic, f, (lo, hi), key in checks:
-        with warnings.catch_warnings():  # empty selections give NaN: a finding not decided
-            warnings.simplefilter("ignore", RuntimeWarning)
-            est = float(f(point))
-            b = np.asarray(f(boot), dtype=float)
-        b = b[np.isfinite(b)]
-        ci = centred_interval(est, b, level, n_episodes)
-        rows.append({"finding": key, "statement": statement, "statistic": statistic,
-                     "estimate": est,
-                     "ci_low": float(ci[0]), "ci_high": float(ci[1]),
-                     "holds": bool(lo < est < hi),
-                     "survives": bool(lo < ci[0] and ci[1] < hi)})
-    return pd.DataFrame(rows)
-
-
-#: A reversal finding's label (:func:`.findings.burden_exceeds_time`) → the headline
-#: comparison whose null tests it (:func:`.nulls.burden_beyond_time`).
-BURDEN_COMPARISON = {"matched, all cells": "matched", "all pairs, all cells": "all_pairs"}
+    for claim in CLAIMS:
+        iv = claim.interval
+        if iv is None or not claim.needs <= have:
+            continue
+        for ctrl in (None,) if iv.per_controller is None else iv.per_controller(ctrls):
+            with warnings.catch_warnings():  # empty selections give NaN: a finding not decided
+                warnings.simplefilter("ignore", RuntimeWarning)
+                est = float(iv.value(cells, point, ctrl))
+                b = np.asarray(iv.value(cells, boot, ctrl), dtype=float)
+            b = b[np.isfinite(b)]
+            ci = centred_interval(est, b, level, n_episodes)
+            lo, hi = iv.band(ctrl)
+            rows.append({"finding": claim.key, "controller": ctrl or "",
+                         "statement": claim.statement, "statistic": iv.statistic,
+                         "estimate": est, "ci_low": float(ci[0]), "ci_high": float(ci[1]),
+                         "holds": bool(lo < est < hi),
+                         "survives": bool(lo < ci[0] and ci[1] < hi)})
+    return pd.DataFrame(rows, columns=["finding", "controller", "statement", "statistic",
+                                       "estimate", "ci_low", "ci_high", "holds", "survives"])
 
 
 def findings_list(findings: pd.DataFrame, surviving: pd.DataFrame | None,
@@ -181,8 +97,8 @@ def findings_list(findings: pd.DataFrame, surviving: pd.DataFrame | None,
         key = str(getattr(f, "key", "") or "")
         row = {"statement": f.statement, "holds": bool(f.holds), "judged_by": "point estimate only",
                "survives": np.nan, "evidence": ""}
-        kind, _, label = key.partition(":")
-        comp = BURDEN_COMPARISON.get(label) if kind == "burden_vs_time" else None
+        claim = CLAIM_BY_KEY.get(key)
+        comp = claim.null if claim is not None else None
         if comp and burden is not None and not burden.empty:
             b = burden[(burden["comparison"] == comp) & (burden["rule"] == "raw")
                        & (burden["metric"] == "mean_delay")]
@@ -198,7 +114,8 @@ def findings_list(findings: pd.DataFrame, surviving: pd.DataFrame | None,
             if not sv.empty:
                 row.update(judged_by="its 90% paired-bootstrap interval",
                            survives=bool(sv["survives"].all()),
-                           evidence="; ".join(f"{x.statistic} = {x.estimate:.2f} "
+                           evidence="; ".join(f"{x.controller + ': ' if x.controller else ''}"
+                                              f"{x.statistic} = {x.estimate:.2f} "
                                               f"[{x.ci_low:.2f}, {x.ci_high:.2f}]"
                                               for x in sv.itertuples()))
         rows.append(row)
