@@ -192,6 +192,18 @@ def test_os_errors_anywhere_are_one_line(tmp_path, monkeypatch, code, needle):
                           needle, "personas.parquet")
 
 
+@pytest.mark.parametrize("args, needles", [
+    (("personas", "--missing", "bogus"), ("--missing", "'require', 'fill' or 'error'")),
+    (("personas", "--only-source", "gss", "--only-source", "gss"), ("--sources", "twice")),
+])
+def test_stage_commands_refuse_what_a_study_file_refuses(tmp_path, args, needles):
+    """The stage commands build the study file's own models (pipeline.PersonaSource): the
+    same value is refused the same way, before anything is written."""
+    out = tmp_path / "out"
+    assert_one_line_error(run_cli(*args, "--out", str(out)), *needles)
+    assert not (out / "personas.parquet").exists()
+
+
 def test_a_lock_file_that_cannot_be_opened_is_one_line(study):
     (study / ".lock").unlink(missing_ok=True)
     (study / ".lock").mkdir()  # root writes anywhere: a folder in its place cannot be opened

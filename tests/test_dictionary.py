@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from popnavshift.dictionary import STUDY_TABLES, data_markdown
-from popnavshift.pipeline import PopulationSettings, run_personas
+from popnavshift.pipeline import PersonaSource, PopulationSettings, run_personas
 from popnavshift.tables import SPECS
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "data.md"
@@ -48,7 +48,7 @@ def test_every_declared_table_is_in_the_dictionary():
 
 
 def test_describe_a_study_folder_and_one_table(tmp_path):
-    run_personas(tmp_path, PopulationSettings(n=5))
+    run_personas(tmp_path, PopulationSettings(PersonaSource(n=5)))
     proc = describe(str(tmp_path))
     assert proc.returncode == 0, proc.stderr
     assert "personas.parquet · 5 rows" in proc.stdout and "runs.parquet" not in proc.stdout

@@ -542,14 +542,16 @@ def test_a_study_file_passes_the_release_policy_to_the_persona_stage(tmp_path, r
     from popnavshift.engine.stages import stage_stamps
     from popnavshift.engine.study import study_from_dict
     from popnavshift.hashing import digest
-    from popnavshift.pipeline import PopulationSettings, run_personas
+    from popnavshift.pipeline import PersonaSource, PopulationSettings, run_personas
 
     folder = write_release(tmp_path / "rel", recs)
     personas = {"source": str(folder), "n": 10, "sources": ["wiki", "gss"],
                 "verify_checksums": False}
     study = study_from_dict({"name": "s", "personas": personas, "parts": {"main": {}}})
     settings = population_settings(study)
-    assert (settings.sources, settings.verify_checksums) == (("wiki", "gss"), False)
+    assert settings.personas is study.personas
+    assert (settings.personas.sources, settings.personas.verify_checksums) == (("wiki", "gss"),
+                                                                            False)
     table = run_personas(tmp_path, settings)
     assert set(table["source"]) == {"wiki", "gss"}
     # the default policy leaves an existing study's stamp as it was
@@ -557,5 +559,5 @@ def test_a_study_file_passes_the_release_policy_to_the_persona_stage(tmp_path, r
     assert stage_stamps(plain)["personas"] == digest(["personas", "synthetic", 600, 0,
                                                        "require"])
     assert stage_stamps(settings)["personas"] != stage_stamps(
-        PopulationSettings(source=str(folder), n=10)
+        PopulationSettings(PersonaSource(source=str(folder), n=10))
     )["personas"]

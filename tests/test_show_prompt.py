@@ -10,7 +10,13 @@ import pytest
 
 from llm_server import serve
 from popnavshift.io import write_parquet
-from popnavshift.pipeline import PopulationSettings, run_personas, run_responses
+from popnavshift.pipeline import (
+    PersonaSource,
+    PopulationSettings,
+    RespondentSpec,
+    run_personas,
+    run_responses,
+)
 
 
 def show(*args):
@@ -27,8 +33,9 @@ def asked(tmp_path_factory):
     study = tmp_path_factory.mktemp("study")
     with serve() as server:
         settings = PopulationSettings(
-            n=12, matched_n=2, respondent="openai",
-            respondent_options={"base_url": server.openai_url, "model": "m", "api_key_env": None},
+            personas=PersonaSource(n=12), matched_n=2, respondent=RespondentSpec(
+                name="openai",
+                options={"base_url": server.openai_url, "model": "m", "api_key_env": None}),
         )
         run_personas(study, settings)
         run_responses(study, settings)
@@ -65,7 +72,7 @@ def test_one_variant_and_an_unknown_persona(asked):
 
 
 def test_markup_in_ids_and_values_is_printed_literally(tmp_path):
-    run_personas(tmp_path, PopulationSettings(n=3))
+    run_personas(tmp_path, PopulationSettings(PersonaSource(n=3)))
     personas = pd.read_parquet(tmp_path / "personas.parquet")
     personas.loc[0, "persona_id"] = "[bold]odd[/bold]"
     write_parquet(personas, tmp_path / "personas.parquet")

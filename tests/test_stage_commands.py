@@ -9,9 +9,10 @@ from dataclasses import replace
 
 from forked_cli import run_cli
 from popnavshift.engine.runner import run_stages
-from popnavshift.pipeline import PopulationSettings
+from popnavshift.pipeline import PersonaSource, PopulationSettings
 
-SETTINGS = PopulationSettings(n=120, seed=3, matched_n=40, mappings=("A", "B"))
+SETTINGS = PopulationSettings(PersonaSource(n=120), seed=3, matched_n=40,
+                              mappings=("A", "B"))
 
 
 def _stage_by_stage(folder, seed: int = 3) -> None:

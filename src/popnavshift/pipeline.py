@@ -15,9 +15,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import pandas as pd
+from pydantic import Field, field_validator
 
 from .errors import InputError, RespondentError
 from .io import write_json, write_parquet
@@ -39,31 +40,53 @@ from .responses.collect import collect_responses
 from .responses.probes import PROBE_SET_HASH
 from .responses.respondent import RESPONDENTS, Respondent
 from .responses.samples import AGGREGATION, aggregate_samples
+from .strict import Count, Strict, Unique
+
+
+class PersonaSource(Strict):
+    """Where the personas come from and how many (a study's ``personas:``)."""
+
+    source: str = "synthetic"
+    n: Count = 600
+    missing: Literal["require", "fill", "error"] = "require"
+    codebook: str | None = None  # release only: codebook file of another layout
+    sources: Annotated[tuple[str, ...] | None, Unique] = None  # release only: sources kept
+    #: release only: check the shards against manifest.json
+    verify_checksums: Annotated[bool, Field(strict=True)] = True
+
+
+class RespondentSpec(Strict):
+    """Who answers the probes (a study's ``respondent:``): a registered respondent, its
+    options and the independent samples per persona and variant."""
+
+    name: str = "rule"
+    options: dict[str, Any] = Field(default_factory=dict)
+    #: independent samples per persona and variant, each sent with its own seed; the
+    #: profiles read their per-item median (docs/method.md), the audit their test–retest
+    samples: int = Field(1, ge=1, le=100)
+
+    @field_validator("options")
+    @classmethod
+    def _no_replicate(cls, v: dict[str, Any]) -> dict[str, Any]:
+        if "replicate" in v:  # it changed only the cache key: a sample that was not one
+            raise ValueError("options.replicate was removed (it changed the cache key, not "
+                             "the request); ask independent samples with `samples: k`, "
+                             "each sent with its own seed")
+        return v
 
 
 @dataclass(frozen=True)
 class PopulationSettings:
-    """Everything that determines the population pipeline's outputs."""
+    """Everything that determines the population pipeline's outputs: the study's persona
+    source and respondents as the study holds them, and what its parts need built."""
 
-    source: str = "synthetic"
-    n: int | None = 600
+    personas: PersonaSource = field(default_factory=PersonaSource)
     seed: int = 0
-    missing: str = "require"
-    #: release only: codebook file for other layouts, record sources kept, manifest check
-    codebook: str | None = None
-    sources: tuple[str, ...] | None = None
-    verify_checksums: bool = True
-    respondent: str = "rule"
-    respondent_options: dict[str, Any] = field(default_factory=dict)
-    #: independent samples per persona and variant (each with its own seed); profiles
-    #: read their aggregate (:func:`popnavshift.responses.samples.aggregate_samples`)
-    samples: int = 1
+    respondent: RespondentSpec = field(default_factory=RespondentSpec)
     matched_n: int = MATCHED_N_DEFAULT
     mappings: tuple[str, ...] = ("A", "B", "C", "D")
     #: second respondent for the respondent-robustness study (matched pair only)
-    respondent2: str | None = None
-    respondent2_options: dict[str, Any] = field(default_factory=dict)
-    samples2: int = 1
+    respondent2: RespondentSpec | None = None
     #: also build the profile sets of the structure study (reassign, shuffle, blocks)
     structure: bool = False
     #: null populations the study runs (:mod:`popnavshift.populations.nulls`), and the
@@ -78,7 +101,7 @@ class PopulationSettings:
     @property
     def respondent2_label(self) -> str | None:
         """Profile-set label of the second respondent, e.g. ``A~rule-2`` (None without one)."""
-        return label("second_respondent", self.respondent2) if self.respondent2 else None
+        return label("second_respondent", self.respondent2.name) if self.respondent2 else None
 
 
 def read_table(path: Path, stage: str) -> pd.DataFrame:
@@ -100,14 +123,15 @@ def read_responses(path: Path) -> pd.DataFrame:
 
 def run_personas(folder: Path, s: PopulationSettings, target: Path | None = None) -> pd.DataFrame:
 
+    p = s.personas
     personas, provenance = load_personas(
-        s.source,
-        n=s.n,
+        p.source,
+        n=p.n,
         seed=s.seed,
-        missing=s.missing,
-        codebook=s.codebook,
-        sources=s.sources,
-        verify_checksums=s.verify_checksums,
+        missing=p.missing,
+        codebook=p.codebook,
+        sources=p.sources,
+        verify_checksums=p.verify_checksums,
     )
     target = target or folder / "personas.parquet"
     write_parquet(personas, target)
@@ -129,26 +153,26 @@ def respondent_from(name: str, options: dict[str, Any], folder: Path) -> Respond
 
 
 def run_responses(folder: Path, s: PopulationSettings, show_progress: bool = True) -> pd.DataFrame:
-    respondent = respondent_from(s.respondent, s.respondent_options, folder)  # fail fast
+    respondent = respondent_from(s.respondent.name, s.respondent.options, folder)  # fail fast
     personas = read_table(folder / "personas.parquet", "personas")
     matched = matched_ids(personas, s.matched_n, s.seed)
     total = len(personas) + len(matched)
-    with progress_bar(f"probing ({respondent.name})", total * s.samples, show_progress,
+    with progress_bar(f"probing ({respondent.name})", total * s.respondent.samples, show_progress,
                       note=getattr(respondent, "progress_note", None)) as advance:
         responses, invalid, stats = collect_responses(personas, respondent, matched, advance,
-                                                      s.samples)
+                                                      s.respondent.samples)
     write_parquet(invalid, folder / "responses_invalid.parquet")
     _require_valid(responses, invalid, respondent, folder / "responses_invalid.parquet")
     write_parquet(responses, folder / "responses.parquet")
     meta = {**stats, **respondent.describe(), "probe_set": PROBE_SET_HASH, "matched_n": s.matched_n,
             "aggregation": AGGREGATION}
     if s.respondent2 is not None:  # the matched pair again, with the second respondent
-        second = respondent_from(s.respondent2, s.respondent2_options, folder)
+        second = respondent_from(s.respondent2.name, s.respondent2.options, folder)
         pair = personas[personas["persona_id"].isin(matched)]
-        with progress_bar(f"probing ({second.name}, 2nd)", 2 * len(pair) * s.samples2,
+        with progress_bar(f"probing ({second.name}, 2nd)", 2 * len(pair) * s.respondent2.samples,
                           show_progress, note=getattr(second, "progress_note", None)) as adv:
             alt, alt_invalid, alt_stats = collect_responses(pair, second, matched, adv,
-                                                            s.samples2)
+                                                            s.respondent2.samples)
         write_parquet(alt_invalid, folder / "responses_alt_invalid.parquet")
         _require_valid(alt, alt_invalid, second, folder / "responses_alt_invalid.parquet")
         write_parquet(alt, folder / "responses_alt.parquet")

@@ -16,9 +16,29 @@ from ..progress import console
 from .app import Out, app, finite_range, folder, say
 
 
-def _settings(**kw: Any):
-    from ..pipeline import PopulationSettings
+def _settings(personas: dict[str, Any] | None = None, respondent: dict[str, Any] | None = None,
+              respondent2: str | None = None, **kw: Any):
+    """The pipeline settings of a stage command: its persona-source and respondent options
+    validated by the study file's own models (a value a study refuses is refused here,
+    naming the option), the rest as given (``None``: the default)."""
+    from pydantic import ValidationError
 
+    from ..pipeline import PersonaSource, PopulationSettings, RespondentSpec
+
+    def model(cls, given: dict[str, Any]):
+        try:
+            return cls(**{k: v for k, v in given.items() if v is not None})
+        except ValidationError as e:
+            err = e.errors()[0]
+            where = ".".join(str(x) for x in err["loc"])
+            raise ConfigError(f"--{where.replace('_', '-')}: {err['msg']}") from None
+
+    if personas is not None:
+        kw["personas"] = model(PersonaSource, personas)
+    if respondent is not None:
+        kw["respondent"] = model(RespondentSpec, respondent)
+    if respondent2 is not None:  # only its profile-set label is read after the probes
+        kw["respondent2"] = RespondentSpec(name=respondent2)
     return PopulationSettings(**{k: v for k, v in kw.items() if v is not None})
 
 
@@ -87,13 +107,15 @@ def personas(
     target = out if out.suffix == ".parquet" else out / "personas.parquet"
     study_folder = folder(target.parent)
     settings = _settings(
-        source=source,
-        n=n,
+        personas=dict(
+            source=source,
+            n=n,
+            missing=missing,
+            codebook=None if codebook is None else str(codebook),
+            sources=tuple(only_source) if only_source else None,
+            verify_checksums=verify_checksums,
+        ),
         seed=seed,
-        missing=missing,
-        codebook=None if codebook is None else str(codebook),
-        sources=tuple(only_source) if only_source else None,
-        verify_checksums=verify_checksums,
     )
     with study_lock(study_folder):
         if target == study_folder / "personas.parquet":  # the study's table: stamped
@@ -193,8 +215,8 @@ def probe(
     )
     if respondent == "rule":
         opts = {k: v for k, v in opts.items() if k == "seed"}
-    s = _settings(respondent=respondent, respondent_options=opts, matched_n=matched_n, seed=seed,
-                  samples=samples)
+    s = _settings(respondent=dict(name=respondent, options=opts, samples=samples),
+                  matched_n=matched_n, seed=seed)
     started = time.perf_counter()
     with study_lock(out):
         df = run_stage(out, "responses", s, stamp=_seed_agrees(out, seed))

@@ -58,23 +58,13 @@ def population_settings(study: Study) -> PopulationSettings:
     used = {m for part in study.parts.values() for m in part.mappings}
     null_parts = [part for part in study.parts.values() if part.null_design is not None]
     nulls = tuple(dict.fromkeys(p for part in null_parts for p in part.planned_populations))
-    second = study.respondent2
     return PopulationSettings(
-        source=study.personas.source,
-        n=study.personas.n,
+        personas=study.personas,
         seed=study.seed,
-        missing=study.personas.missing,
-        codebook=study.personas.codebook,
-        sources=study.personas.sources,
-        verify_checksums=study.personas.verify_checksums,
-        respondent=study.respondent.name,
-        respondent_options=dict(study.respondent.options),
-        samples=study.respondent.samples,
+        respondent=study.respondent,
+        respondent2=study.respondent2,
         matched_n=study.matched_n,
         mappings=tuple(dict.fromkeys(("A", *study.mappings))),
-        respondent2=None if second is None else second.name,
-        respondent2_options={} if second is None else dict(second.options),
-        samples2=1 if second is None else second.samples,
         structure=any(ProfileSet.parse(m).is_structure for m in used),
         nulls=nulls,
         null_mappings=tuple(sorted({m for part in null_parts for m in part.mappings})),

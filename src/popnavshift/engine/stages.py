@@ -53,10 +53,11 @@ class Stage:
 
 
 def _persona_settings(s: PopulationSettings) -> list[Any]:
-    source: list[Any] = [s.source, s.n, s.seed, s.missing]
-    if s.source != "synthetic" and Path(s.source).exists():
-        source.append(content_digest(s.source))  # an edited file reruns its stage
-    release = [s.codebook, s.sources, s.verify_checksums]
+    p = s.personas
+    source: list[Any] = [p.source, p.n, s.seed, p.missing]
+    if p.source != "synthetic" and Path(p.source).exists():
+        source.append(content_digest(p.source))  # an edited file reruns its stage
+    release = [p.codebook, p.sources, p.verify_checksums]
     if release != [None, None, True]:  # release options only when set: old stamps stay valid
         source.append(release)
     return source
@@ -68,10 +69,12 @@ def _population_settings(s: PopulationSettings) -> list[Any]:
 
 
 def _response_settings(s: PopulationSettings) -> list[Any]:
-    asked = [s.respondent, s.respondent_options, s.matched_n, PROBE_SET_HASH, s.respondent2,
-             s.respondent2_options]
+    first, second = s.respondent, s.respondent2
+    asked = [first.name, first.options, s.matched_n, PROBE_SET_HASH,
+             None if second is None else second.name, {} if second is None else second.options]
+    samples = (first.samples, 1 if second is None else second.samples)
     # samples only when set: the stamps of one-sample folders stay valid
-    return asked if (s.samples, s.samples2) == (1, 1) else [*asked, s.samples, s.samples2]
+    return asked if samples == (1, 1) else [*asked, *samples]
 
 
 def _write_episodes(folder: Path, s: PopulationSettings, _progress: bool) -> None:

@@ -16,9 +16,6 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 from pydantic import (
-    AfterValidator,
-    BaseModel,
-    ConfigDict,
     Field,
     PrivateAttr,
     ValidationError,
@@ -30,11 +27,13 @@ from pydantic import (
 from ..errors import ConfigError, UnknownNameError
 from ..hashing import digest
 from ..paper import PAPER_CONTROLLERS, PAPER_POPULATIONS
+from ..pipeline import PersonaSource, RespondentSpec
 from ..populations.build import POPULATIONS, SPLIT_HALVES, is_known
 from ..populations.identity import MATCHED_PAIR, SIZED_SOURCE
 from ..populations.nulls import null_populations
 from ..populations.perturb import ProfileSet
 from ..sim.controllers.registry import controller_id
+from ..strict import Count, Names, Number, Seed, Strict, Unique
 from .study_yaml import parse_study_yaml
 
 SCENES = ("sidewalk", "head_on", "crossing", "bottleneck", "obstruction")
@@ -42,59 +41,6 @@ SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
 #: a name becomes a folder and a table value: long enough for any study, short enough
 #: for any file system (255 bytes a component)
 NAME_MAX = 100
-#: seeds feed numpy's SeedSequence and int64 table columns: non-negative, 32 bits
-SEED_MAX = 2**32 - 1
-#: more personas than this is a typo (the MATRAIX release holds about 100 000)
-PERSONAS_MAX = 10_000_000
-
-
-def _no_duplicates(values: tuple | None) -> tuple | None:
-    """A listed value twice is a typo or a copy-paste slip, never a design: refuse it
-    instead of silently running it once (or twice)."""
-    for i, value in enumerate(values or ()):
-        if value in values[:i]:  # type: ignore[index]
-            raise ValueError(f"{value!r} is listed twice")
-    return values
-
-
-#: strict: YAML's ``true`` is not the seed 1, nor ``1.0`` the seed 1 (silently rounded)
-Seed = Annotated[int, Field(strict=True, ge=0, le=SEED_MAX)]
-Count = Annotated[int, Field(strict=True, ge=1, le=PERSONAS_MAX)]
-Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]
-Unique = AfterValidator(_no_duplicates)
-#: a non-empty list of distinct names
-Names = Annotated[tuple[str, ...], Field(min_length=1), Unique]
-
-
-class Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-class PersonaSource(Strict):
-    source: str = "synthetic"
-    n: Count = 600
-    missing: Literal["require", "fill", "error"] = "require"
-    codebook: str | None = None  # release only: codebook file of another layout
-    sources: Annotated[tuple[str, ...] | None, Unique] = None  # release only: sources kept
-    #: release only: check the shards against manifest.json
-    verify_checksums: Annotated[bool, Field(strict=True)] = True
-
-
-class RespondentSpec(Strict):
-    name: str = "rule"
-    options: dict[str, Any] = Field(default_factory=dict)
-    #: independent samples per persona and variant, each sent with its own seed; the
-    #: profiles read their per-item median (docs/method.md), the audit their test–retest
-    samples: int = Field(1, ge=1, le=100)
-
-    @field_validator("options")
-    @classmethod
-    def _no_replicate(cls, v: dict[str, Any]) -> dict[str, Any]:
-        if "replicate" in v:  # it changed only the cache key: a sample that was not one
-            raise ValueError("options.replicate was removed (it changed the cache key, not "
-                             "the request); ask independent samples with `samples: k`, "
-                             "each sent with its own seed")
-        return v
 
 
 class EpisodeSelection(Strict):
