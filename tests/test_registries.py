@@ -258,3 +258,23 @@ def test_a_respondent_that_declares_uses_cache_gets_the_study_cache(tmp_path, mo
                            tmp_path).cache_path == other
     rule = respondent_from("rule", {}, tmp_path)
     assert not rule.uses_cache and not hasattr(rule, "cache_path")
+
+
+def test_llm_settings_are_declared_once_and_taken_by_every_llm_respondent():
+    """Every LLM respondent takes the settings of ``LLMSettings`` with their declared
+    defaults (its signature lists them, so a mistyped one is named), and its own options."""
+    import inspect
+
+    from popnavshift.responses.llm.settings import SETTING_NAMES, LLMSettings
+
+    for name, own in (("openai", {"base_url", "api_key_env", "extra_body"}),
+                      ("gemini", {"base_url", "api_key_env"})):
+        cls = RESPONDENTS.resolve(name)
+        params = inspect.signature(cls).parameters
+        assert set(params) == {"model", *own, *SETTING_NAMES}
+        assert {n: params[n].default for n in SETTING_NAMES} == {
+            n: getattr(LLMSettings, n) for n in SETTING_NAMES}
+        made = RESPONDENTS.make(name, model="m", timeout=7.5, max_retries=0)
+        assert (made.timeout, made.max_retries, made.deadline) == (7.5, 0, None)
+    with pytest.raises(ConfigError, match="did you mean 'max_retries'"):
+        RESPONDENTS.make("openai", max_retry=3)

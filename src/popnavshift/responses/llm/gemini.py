@@ -23,14 +23,13 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 from typing import Any, NoReturn
 
 from ...errors import ConfigError
 from ...redact import redact
 from ..prompt import SYSTEM_PROMPT, build_prompt
 from ..schema import response_json_schema
-from .retries import MAX_RETRY_AFTER, FinalError, Reply, RetryableError, check_status
+from .retries import FinalError, Reply, RetryableError, check_status
 from .settings import check_setting, env_key, is_http_url
 from .transport import REASK, LLMRespondent
 
@@ -55,30 +54,9 @@ class GeminiRespondent(LLMRespondent):
         model: str = "gemini-2.5-flash",
         api_key_env: str = "GEMINI_API_KEY",
         base_url: str | None = None,
-        temperature: float | None = 0.0,
-        seed: int | None = 0,
-        cache_path: str | Path | None = None,
-        max_concurrency: int = 4,
-        rate_limit: float | None = None,
-        timeout: float = 60.0,
-        max_retries: int = 5,
-        max_reasks: int = 2,
-        backoff_base: float = 0.5,
-        backoff_cap: float = 30.0,
-        max_tokens: int | None = None,
-        ready_timeout: float = 30.0,
-        max_consecutive_failures: int = 5,
-        max_retry_after: float = MAX_RETRY_AFTER,
-        deadline: float | None = None,
+        **settings: Any,
     ) -> None:
-        super().__init__(
-            model=model, temperature=temperature, seed=seed,
-            cache_path=cache_path, max_concurrency=max_concurrency, rate_limit=rate_limit,
-            timeout=timeout, max_retries=max_retries, max_reasks=max_reasks,
-            backoff_base=backoff_base, backoff_cap=backoff_cap, max_tokens=max_tokens,
-            ready_timeout=ready_timeout, max_consecutive_failures=max_consecutive_failures,
-            max_retry_after=max_retry_after, deadline=deadline,
-        )
+        super().__init__(model=model, **settings)
         self.api_key_env = api_key_env
         self.base_url = base_url
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 from typing import Any
 
 import httpx
@@ -23,7 +22,7 @@ from ..schema import response_json_schema
 from .cache import Identity
 from .identity import entry_identity, listing_details, listing_entry, props_details
 from .readiness import NotReady
-from .retries import MAX_RETRY_AFTER, Reply, RetryableError, check_status
+from .retries import Reply, RetryableError, check_status
 from .settings import check_setting, env_key, is_http_url
 from .transport import REASK, LLMRespondent
 
@@ -46,31 +45,10 @@ class OpenAIRespondent(LLMRespondent):
         base_url: str = "https://api.openai.com/v1",
         model: str = "gpt-4o-mini",
         api_key_env: str | None = "OPENAI_API_KEY",
-        temperature: float | None = 0.0,
-        seed: int | None = 0,
         extra_body: Mapping[str, Any] | None = None,
-        cache_path: str | Path | None = None,
-        max_concurrency: int = 4,
-        rate_limit: float | None = None,
-        timeout: float = 60.0,
-        max_retries: int = 5,
-        max_reasks: int = 2,
-        backoff_base: float = 0.5,
-        backoff_cap: float = 30.0,
-        max_tokens: int | None = None,
-        ready_timeout: float = 30.0,
-        max_consecutive_failures: int = 5,
-        max_retry_after: float = MAX_RETRY_AFTER,
-        deadline: float | None = None,
+        **settings: Any,
     ) -> None:
-        super().__init__(
-            model=model, temperature=temperature, seed=seed,
-            cache_path=cache_path, max_concurrency=max_concurrency, rate_limit=rate_limit,
-            timeout=timeout, max_retries=max_retries, max_reasks=max_reasks,
-            backoff_base=backoff_base, backoff_cap=backoff_cap, max_tokens=max_tokens,
-            ready_timeout=ready_timeout, max_consecutive_failures=max_consecutive_failures,
-            max_retry_after=max_retry_after, deadline=deadline,
-        )
+        super().__init__(model=model, **settings)
         self.base_url = base_url
         self.api_key_env = api_key_env
         self.extra_body = dict(extra_body or {})

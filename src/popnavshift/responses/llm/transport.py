@@ -33,7 +33,6 @@ from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field, replace
 from functools import partial
-from pathlib import Path
 from typing import Any
 
 from ...errors import ConfigError, RespondentError, TransportError
@@ -45,7 +44,6 @@ from .cache import CacheStats, ResponseCache, request_key
 from .identity import Identity, served_identity
 from .readiness import Breaker, announced, wait_until_ready
 from .retries import (
-    MAX_RETRY_AFTER,
     RateLimiter,
     RetryPolicy,
     Session,
@@ -53,7 +51,7 @@ from .retries import (
     add_tokens,
     send_with_retries,
 )
-from .settings import check_setting, is_int, is_pos
+from .settings import SETTING_NAMES, LLMSettings, check_setting, is_int, is_pos, with_settings
 
 log = logging.getLogger("popnavshift.responses.llm")
 
@@ -89,7 +87,7 @@ class _Run:
         return redact(text)
 
 
-class LLMRespondent(Respondent):
+class LLMRespondent(LLMSettings, Respondent):
     """Shared engine of the network respondents (cache, retries, re-asks, pool).
 
     Subclasses set ``name``, :attr:`endpoint`, and implement :meth:`_api_key`,
@@ -98,42 +96,20 @@ class LLMRespondent(Respondent):
 
     uses_cache = True
 
-    def __init__(
-        self,
-        *,
-        model: str,
-        temperature: float | None = 0.0,
-        seed: int | None = 0,
-        cache_path: str | Path | None = None,
-        max_concurrency: int = 4,
-        rate_limit: float | None = None,
-        timeout: float = 60.0,
-        max_retries: int = 5,
-        max_reasks: int = 2,
-        backoff_base: float = 0.5,
-        backoff_cap: float = 30.0,
-        max_tokens: int | None = None,
-        ready_timeout: float = 30.0,
-        max_consecutive_failures: int = 5,
-        max_retry_after: float = MAX_RETRY_AFTER,
-        deadline: float | None = None,
-    ) -> None:
+    def __init_subclass__(cls, **kw: Any) -> None:
+        super().__init_subclass__(**kw)
+        if "__init__" in vars(cls):  # its own options, then every shared setting
+            cls.__signature__ = with_settings(cls.__init__)  # type: ignore[attr-defined]
+
+    def __init__(self, *, model: str, **settings: Any) -> None:
+        """``model`` and any of the :class:`~.settings.LLMSettings` (the rest keep their
+        defaults, the class attributes)."""
+        unknown = [k for k in settings if k not in SETTING_NAMES]
+        if unknown:
+            raise TypeError(f"unexpected keyword argument {unknown[0]!r}")
         self._model = model
-        self.temperature = temperature
-        self.seed = seed
-        self.cache_path = cache_path
-        self.max_concurrency = max_concurrency
-        self.rate_limit = rate_limit
-        self.timeout = timeout
-        self.max_retries = max_retries
-        self.max_reasks = max_reasks
-        self.backoff_base = backoff_base
-        self.backoff_cap = backoff_cap
-        self.max_tokens = max_tokens  # None: the server's default limit
-        self.ready_timeout = ready_timeout
-        self.max_consecutive_failures = max_consecutive_failures
-        self.max_retry_after = max_retry_after  # longest Retry-After honoured (s)
-        self.deadline = deadline  # one request's calls and waits together (s); None: no bound
+        for name, value in settings.items():
+            setattr(self, name, value)
         self.cache_stats: CacheStats | None = None  # counts of the last answer_all
         self._served_identity: str | None = None  # of the last answer_all's server
         #: what the server said of its model (file name, size, parameters, build) in the
