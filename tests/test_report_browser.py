@@ -130,6 +130,7 @@ PROBE = """JSON.stringify({
   sections: Array.from(document.querySelectorAll("section")).map(s => s.id),
   scripts: document.scripts.length,
   respondent: document.getElementById("respondent-note").textContent,
+  overflow: document.documentElement.scrollWidth - document.documentElement.clientWidth,
 })"""
 
 
@@ -165,6 +166,7 @@ def test_page_loads_without_errors_and_shows_figures_and_tables(page, tmp_path):
     assert len(dom["images"]) == 8  # Table I, Fig. 2–4, τ, trade-off and the null figure
     assert all(i["data"] and i["ok"] and i["shown"] > 300 for i in dom["images"]), dom["images"]
     assert len(dom["tables"]) >= 10 and min(dom["tables"]) >= 1
+    assert dom["overflow"] <= 0  # a wide table scrolls in its box, not the page sideways
     # the answer first, then the respondent audit, the populations and the checks before
     # any score
     assert dom["sections"][:8] == ["answer", "ranks", "replicates", "calibration", "audit",
