@@ -32,10 +32,12 @@ def plot_nulls(head: pd.DataFrame, null_rates: pd.DataFrame) -> plt.Figure:
     for j, comp in enumerate(comps):
         for i, rule in enumerate(("raw", "sig")):
             ax = axes[i][j]
+            shown = False
             for k, m in enumerate(metrics):
                 sel = null_rates[(null_rates["comparison"] == comp) & (null_rates["metric"] == m)
                                  & (null_rates["rule"] == rule)]
                 nr = sel["rate"].to_numpy(float) * 100
+                shown |= bool(np.isfinite(nr).any())
                 jitter = np.linspace(-0.15, 0.15, max(len(nr), 1))[: len(nr)]
                 ax.scatter(k + jitter, nr, s=9, color="#999999", zorder=2,
                            label="null replicates" if k == 0 else None)
@@ -44,7 +46,8 @@ def plot_nulls(head: pd.DataFrame, null_rates: pd.DataFrame) -> plt.Figure:
                               label="null mean" if k == 0 else None)
                 obs = head[(head["comparison"] == comp) & (head["metric"] == m)
                            & (head["rule"] == rule)]
-                if not obs.empty:
+                if not obs.empty and np.isfinite(obs["observed"].iloc[0]):
+                    shown = True
                     ax.scatter([k], [100 * obs["observed"].iloc[0]], marker="D", s=40,
                                color="#C44E52", zorder=3, label="observed" if k == 0 else None)
             ax.set_xticks(x, [LABELS[m] for m in metrics], fontsize=8)
@@ -52,6 +55,11 @@ def plot_nulls(head: pd.DataFrame, null_rates: pd.DataFrame) -> plt.Figure:
             ax.set_title(f"{TITLES[comp]} — {RULE_TITLES[rule]}", fontsize=9)
             ax.grid(axis="y", alpha=0.3)
             ax.set_ylabel("reversals (% of comparable)", fontsize=8)
+            if not shown:  # an empty axis would read as rates of 0 ± 0.04
+                ax.set_yticks([])
+                ax.text(0.5, 0.5, "no rate: no ordering could be compared\nunder this rule "
+                        "(see the table)", ha="center", va="center", transform=ax.transAxes,
+                        fontsize=8, color="#555555")
     axes[0][0].legend(fontsize=7)
     fig.tight_layout()
     return fig
