@@ -70,7 +70,8 @@ Nothing needs parsing out of an id or a label: `seed_set` says which episode dra
 run used (the `…@s<k>` episodes); `profile_set` how its profiles were made (the `A~…`
 profile sets), spelt out as `profile_base` (the mapping), `perturbation` and
 `perturbation_arg` (e.g. `A`, `block`, `caution` for `A~block-caution`);
-`population_role` what a population is (`observed`, `swap_null`, `sized_null`, `half`)
+`population_role` what a population is (`observed`, a null design's role such as
+`swap_null` or `sized_null`, `half`)
 and `null_replicate` which null replicate; and `run_id` joins a run to its pedestrians.
 With DuckDB, straight from the files (`main` comes first in every shipped study, so its
 runs are exactly the rows stored under it):

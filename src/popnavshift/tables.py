@@ -228,10 +228,10 @@ _RUN_COLUMNS = (
          "set k", refers="episodes.id"),
     _col("population", "str", "population condition", refers="populations.population"),
     _col("population_role", "str", "what the population is: observed (a condition of the "
-         "study), swap_null or sized_null (a null replicate: keep them out of any summary of "
-         "the conditions), half (a split half of the noise floor)"),
-    _col("null_replicate", "int", "the replicate k of a swap_null or sized_null population; "
-         "0 for the others"),
+         "study), a null design's role such as swap_null or sized_null (a null replicate: keep "
+         "them out of any summary of the conditions), half (a split half of the noise floor)"),
+    _col("null_replicate", "int", "the replicate k of a null population (swap_null, "
+         "sized_null, …); 0 for the others"),
     _col("controller", "str", "robot controller id; none = no-robot baseline run"),
     _col("backend", "str", "pedestrian dynamics: orca (Ped-ORCA) or hl (navground HL)"),
     _col("mapping", "str", MAPPING_DOC, refers="populations.mapping"),

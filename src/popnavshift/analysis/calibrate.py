@@ -13,9 +13,9 @@ rule makes on a placebo is a false positive. Per rule and claim:
   construction — with P − 1 replicates it can reach 0.05 only when P ≥ 20, so a study
   with fewer has no placebo for it, and says so);
 * **crossover test**: any crossover surviving the table's control between the two arms
-  of a swap permutation (5 %). Size-matched subsets are no placebo for it — one random
-  persona and hundreds may truly order controllers differently — so their crossovers
-  are reported as a diagnostic;
+  of a swap permutation (5 %). Size-matched subsets (as the populations of any other null
+  design) are no placebo for it — one random persona and hundreds may truly order
+  controllers differently — so their crossovers are reported as a diagnostic;
 * diagnostic, no verdict rests on it: the **episode-only interval** of the excess excludes
   0 (nominal 5 % if it were a test against the null; it is not: it holds the replicates
   fixed).
@@ -41,11 +41,14 @@ check.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
 
+from .nulls import DEFAULT_NULL
 from .verdicts import (
     ABOVE,
     ALPHA,
@@ -59,30 +62,57 @@ from .verdicts import (
     prediction_test,
 )
 
-#: (test, rule, claim, kind, nominal, shift of the placebo's rate, claim made?)
-Check = tuple[str, str, str, str, float, float, Callable[[dict], bool]]
+
+@dataclass(frozen=True)
+class Test:
+    """A verdict rule's test: its ``name`` in the tables, its function of (a rate, the null
+    replicates' rates) returning a dict with the ``verdict``, and the fewest null replicates
+    with which it can claim anything (a placebo with fewer other replicates says nothing of
+    its false-positive rate)."""
+
+    name: str
+    decide: Callable[[float, np.ndarray], dict]
+    min_nulls: int
+
+
+PREDICTION_T = Test("prediction t", prediction_test, MIN_NULLS_T)
+PERMUTATION = Test("exact permutation", permutation_test, min_nulls_permutation())
+
+
+class Check(NamedTuple):
+    """One claim of a verdict rule measured on placebos: its test, the rate rule it decides
+    (``raw`` or ``sig``), the claim, its kind (false positive or power), the nominal rate,
+    the shift added to the placebo's rate and whether a verdict makes the claim."""
+
+    test: Test
+    rule: str
+    claim: str
+    kind: str
+    nominal: float
+    shift: float
+    made: Callable[[dict], bool]
+
+
 CHECKS: tuple[Check, ...] = (
-    ("prediction t", "raw", "an effect (above or below)", "false positive", ALPHA,
-     0.0, lambda d: d["verdict"] in (ABOVE, BELOW)),
-    ("prediction t", "raw", "above the null", "false positive", ALPHA / 2, 0.0,
-     lambda d: d["verdict"] == ABOVE),
-    ("prediction t", "raw", "no excess ≥ 5 pp, at +5 pp", "false positive", ALPHA / 2,
-     MIN_EFFECT, lambda d: d["verdict"] == SMALL),
-    ("prediction t", "raw", "above the null, at +5 pp", "power", np.nan, MIN_EFFECT,
-     lambda d: d["verdict"] == ABOVE),
-    ("prediction t", "raw", "above the null, at +10 pp", "power", np.nan,
-     2 * MIN_EFFECT, lambda d: d["verdict"] == ABOVE),
-    ("exact permutation", "sig", "above the null", "false positive", ALPHA, 0.0,
-     lambda d: d["verdict"] == ABOVE),
+    Check(PREDICTION_T, "raw", "an effect (above or below)", "false positive", ALPHA,
+          0.0, lambda d: d["verdict"] in (ABOVE, BELOW)),
+    Check(PREDICTION_T, "raw", "above the null", "false positive", ALPHA / 2, 0.0,
+          lambda d: d["verdict"] == ABOVE),
+    Check(PREDICTION_T, "raw", "no excess ≥ 5 pp, at +5 pp", "false positive", ALPHA / 2,
+          MIN_EFFECT, lambda d: d["verdict"] == SMALL),
+    Check(PREDICTION_T, "raw", "above the null, at +5 pp", "power", np.nan, MIN_EFFECT,
+          lambda d: d["verdict"] == ABOVE),
+    Check(PREDICTION_T, "raw", "above the null, at +10 pp", "power", np.nan,
+          2 * MIN_EFFECT, lambda d: d["verdict"] == ABOVE),
+    Check(PERMUTATION, "sig", "above the null", "false positive", ALPHA, 0.0,
+          lambda d: d["verdict"] == ABOVE),
 )
+#: every test of :data:`CHECKS`, by name
+TESTS: dict[str, Test] = {c.test.name: c.test for c in CHECKS}
 CROSSOVER_CLAIM = "a crossover between swap arms"
-#: Size-matched subsets of different sizes (one persona against hundreds) may truly order
+#: Subsets of different sizes (size-matched: one persona against hundreds) may truly order
 #: controllers differently: a crossover there is not known to be false, only reported.
-CROSSOVER_SIZED = "a crossover among sized subsets"
-TESTS = {"prediction t": prediction_test, "exact permutation": permutation_test}
-#: The fewest other replicates with which a placebo can make a claim under each test: a
-#: placebo that cannot claim says nothing about the rule's false-positive rate.
-MIN_OTHERS = {"prediction t": MIN_NULLS_T, "exact permutation": min_nulls_permutation()}
+CROSSOVER_SUBSETS = "a crossover among {} subsets"
 COLUMNS = ["comparison", "test", "rule", "claim", "kind", "nominal", "placebos", "claims",
            "rate", "cp_low", "cp_high", "within", "status"]
 FAMILY_EFFECT = "any rate above or below the null"
@@ -97,16 +127,17 @@ def placebos(null_rates: pd.DataFrame) -> pd.DataFrame:
     for (comp, metric, rule), g in null_rates.groupby(["comparison", "metric", "rule"],
                                                       sort=False):
         rates = g["rate"].to_numpy(float)
-        for test, check_rule, claim, _, _, shift, made in CHECKS:
-            if check_rule != rule or len(rates) - 1 < MIN_OTHERS[test]:
+        for check in CHECKS:
+            if check.rule != rule or len(rates) - 1 < check.test.min_nulls:
                 continue  # with so few other replicates the rule can never claim anything
             for j in range(len(rates)):
                 if not np.isfinite(rates[j]):
                     continue
-                d = TESTS[test](rates[j] + shift, np.delete(rates, j))
-                rows.append({"comparison": comp, "metric": metric, "test": test, "rule": rule,
-                             "claim": claim, "replicate": int(g["replicate"].iloc[j]),
-                             "claim_made": bool(made(d))})
+                d = check.test.decide(rates[j] + check.shift, np.delete(rates, j))
+                rows.append({"comparison": comp, "metric": metric, "test": check.test.name,
+                             "rule": rule, "claim": check.claim,
+                             "replicate": int(g["replicate"].iloc[j]),
+                             "claim_made": bool(check.made(d))})
     return pd.DataFrame(rows)
 
 
@@ -154,12 +185,15 @@ def status(low: float, high: float, nominal: float) -> str:
 
 
 def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame | None = None,
-                      *, family: int = 0) -> pd.DataFrame:
+                      *, family: int = 0, null_kinds: Mapping[str, str] | None = None
+                      ) -> pd.DataFrame:
     """Per comparison (and ``all`` pooled) and check: placebos, claims, the claim rate with
     its Clopper–Pearson 95 % interval, the nominal level, ``within`` (the interval's lower
     end at or below it; NaN for power rows) and ``status`` (:func:`status`). Rows follow
     ``CHECKS``, then the headline table as a whole (with ``family`` raw rates, each decided
-    at α/``family``), the crossover test and the episode-only interval (a diagnostic)."""
+    at α/``family``), the crossover test (a placebo between swap arms, a diagnostic among
+    the subsets of another null: ``null_kinds`` gives each comparison's null design kind,
+    default :data:`.nulls.DEFAULT_NULL`) and the episode-only interval (a diagnostic)."""
     if null_rates is None or null_rates.empty:
         return pd.DataFrame(columns=COLUMNS)
     p = placebos(null_rates)
@@ -168,10 +202,12 @@ def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame
     if not fam.empty:
         frames.append(fam)
     if placebo_crossovers is not None and not placebo_crossovers.empty:
-        swap = placebo_crossovers["comparison"] == "matched"
+        null_of = {**DEFAULT_NULL, **(null_kinds or {})}
+        null = [null_of.get(c, "sized") for c in placebo_crossovers["comparison"]]
         frames.append(placebo_crossovers.assign(
             test="crossover test", rule="—",
-            claim=np.where(swap, CROSSOVER_CLAIM, CROSSOVER_SIZED),
+            claim=[CROSSOVER_CLAIM if k == "swap" else CROSSOVER_SUBSETS.format(k)
+                   for k in null],
             claim_made=placebo_crossovers["any"].astype(bool)))
     if "episode_excludes_zero" in null_rates:
         e = null_rates[null_rates["episode_excludes_zero"].notna()]
@@ -179,8 +215,8 @@ def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame
                                claim="an effect (excludes 0)",
                                claim_made=e["episode_excludes_zero"].astype(bool)))
     allp = pd.concat(frames, ignore_index=True)
-    order = {(c[0], c[2]): i for i, c in enumerate(CHECKS)}
-    kinds = {(c[0], c[2]): (c[3], c[4]) for c in CHECKS}
+    order = {(c.test.name, c.claim): i for i, c in enumerate(CHECKS)}
+    kinds = {(c.test.name, c.claim): (c.kind, c.nominal) for c in CHECKS}
     rows = []
     for comp in [*sorted(allp["comparison"].unique()), "all"]:
         sub = (allp[allp["comparison"] != "table"] if comp == "all"
@@ -189,7 +225,8 @@ def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame
             kind, nominal = kinds.get((test, claim), ("false positive", ALPHA))
             if claim == FAMILY_SMALL:
                 nominal = ALPHA / 2
-            if test.startswith("episode") or claim == CROSSOVER_SIZED:
+            if test.startswith("episode") or (test == "crossover test"
+                                               and claim != CROSSOVER_CLAIM):
                 kind = "diagnostic"
             k, n = int(g["claim_made"].sum()), len(g)
             low, high = clopper_pearson(k, n)
@@ -203,13 +240,14 @@ def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame
                                     -1 if test == "headline table" else
                                     98 if test.startswith("episode") else 95)})
     have = {(r["test"], r["claim"]) for r in rows if r["comparison"] == "all"}
-    for test, rule, claim, kind, nominal, _, _ in CHECKS:  # a rule no placebo could test
-        if (test, claim) not in have:
-            rows.append({"comparison": "all", "test": test, "rule": rule, "claim": claim,
-                         "kind": kind, "nominal": nominal, "placebos": 0, "claims": 0,
-                         "rate": np.nan, "cp_low": np.nan, "cp_high": np.nan, "within": np.nan,
-                         "status": "no placebos" if kind == "false positive" else kind,
-                         "_order": order[(test, claim)]})
+    for c in CHECKS:  # a rule no placebo could test
+        if (c.test.name, c.claim) not in have:
+            rows.append({"comparison": "all", "test": c.test.name, "rule": c.rule,
+                         "claim": c.claim, "kind": c.kind, "nominal": c.nominal, "placebos": 0,
+                         "claims": 0, "rate": np.nan, "cp_low": np.nan, "cp_high": np.nan,
+                         "within": np.nan,
+                         "status": "no placebos" if c.kind == "false positive" else c.kind,
+                         "_order": order[(c.test.name, c.claim)]})
     out = pd.DataFrame(rows).assign(_pooled=lambda t: t["comparison"].isin(["all", "table"]))
     out = out.sort_values(["_pooled", "comparison", "_order", "rule"], kind="stable")
     return out.reset_index(drop=True)[COLUMNS]

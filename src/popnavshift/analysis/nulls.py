@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..populations.identity import ARMS, MATCHED_PAIR, SIZED_SOURCE, PopulationSpec
+from ..populations.identity import ARMS, MATCHED_PAIR, SIZED_SOURCE, PopulationSpec, null_kind
 from .reversals import population_pairs
 from .significance import Orderings, PairCounts, pair_counts
 from .verdicts import decide
@@ -263,6 +263,23 @@ def headline_designs(populations: Sequence[str],
             reps = [k for k in reps if k in swaps]
         out["all_pairs"] = (pairs, [sized_pairs(pairs, k, swap=swap) for k in reps])
     return out
+
+
+#: The null a comparison is tested against when the study ran none of its replicates.
+DEFAULT_NULL = {"matched": "swap", "all_pairs": "sized"}
+
+
+def design_null(label: str, observed: Sequence[tuple[str, str]],
+                nulls: Sequence[Sequence[tuple[str, str]]]) -> str:
+    """The null design kind (:data:`popnavshift.populations.identity.NULL_KINDS`) comparison
+    ``label`` is tested against: that of the replicates standing in for its first pair other
+    than the matched pair (whose null is swap permutation k wherever the study ran it), or
+    for the matched pair alone; without replicates, :data:`DEFAULT_NULL`."""
+    if not nulls:
+        return DEFAULT_NULL[label]
+    i = next((j for j, pair in enumerate(observed) if set(pair) != set(MATCHED_PAIR)), 0)
+    spec = next(s for s in map(PopulationSpec.parse, nulls[0][i]) if s.is_null)
+    return null_kind(spec)
 
 
 def design_populations(observed: Sequence[tuple[str, str]],

@@ -35,7 +35,13 @@ from ..populations.identity import PopulationSpec
 from ..tables import NO_ROBOT
 from .calibrate import calibration_table
 from .evidence import complete_design, test_comparisons
-from .nulls import burden_beyond_time, design_populations, family_verdicts, headline_designs
+from .nulls import (
+    burden_beyond_time,
+    design_null,
+    design_populations,
+    family_verdicts,
+    headline_designs,
+)
 from .power import Costs, design_advice
 from .ranked import names
 from .replicates import replicability, replicate_curve, seed_sets
@@ -85,7 +91,7 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
         tested = test_comparisons(r, p, one, obs_pops, rng=np.random.default_rng([rng_seed, i]),
                                   n_boot=n_boot, level=level)
         n_sets = int(seed_sets(r).nunique())
-        head = tested.headline.assign(null="swap" if label == "matched" else "sized",
+        head = tested.headline.assign(null=design_null(label, obs_pairs, nulls),
                                       seed_sets=n_sets, variants_per_cell=3 * n_sets)
         add = {"headline": head, "null_rates": tested.null_rates,
                "crossovers": tested.crossovers,
@@ -131,7 +137,8 @@ def _decided(tables: dict[str, pd.DataFrame], boot_excess: dict, costs: dict[str
            PREFIX + "burden": pd.concat(burden, ignore_index=True).assign(family=m),
            PREFIX + "calibration": calibration_table(
                nulls, tables.get(PREFIX + "placebo_crossovers"),
-               family=int(head.loc[head["rule"] == "raw", "family"].max()))}
+               family=int(head.loc[head["rule"] == "raw", "family"].max()),
+               null_kinds=dict(zip(head["comparison"], head["null"], strict=True)))}
     curves = tables.get(PREFIX + "curve")
     power = []
     for c in comps:

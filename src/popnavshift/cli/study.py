@@ -158,6 +158,7 @@ def calibrate(
     it), 'above nominal', or 'too few placebos to tell'. Exit 1 if the study ran no null.
     Example: `popnavshift calibrate study`.
     """
+    from ..analysis.calibrate import TESTS
     from ..engine.store import check_study_folder
 
     check_study_folder(study_dir)
@@ -199,14 +200,11 @@ def calibrate(
                       + "; ".join(f"{say(r.test)}: {say(r.claim)}" for r in unsure.itertuples())
                       + " (more null replicates would tell; the test suite checks the rules on "
                       "thousands of synthetic designs).", highlight=False)
-    unchecked = sorted(set(CHECKABLE) - set(checked["test"]))
+    unchecked = sorted(set(TESTS) - set(checked["test"]))
     if unchecked:
-        console.print("no placebo could make a claim for: " + ", ".join(unchecked)
-                      + " (too few null replicates; the exact permutation test needs 20, and "
-                      "is exact by construction).", highlight=False)
-
-
-CHECKABLE = ("prediction t", "exact permutation")
+        console.print("no placebo could make a claim for: "
+                      + "; ".join(f"{n} (it needs {TESTS[n].min_nulls + 1} null replicates)"
+                                  for n in unchecked) + ".", highlight=False)
 
 
 def _calibration(study_dir: Path, fresh: bool):

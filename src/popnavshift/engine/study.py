@@ -66,7 +66,8 @@ class EpisodeSelection(Strict):
 class NullDesign(Strict):
     """A null design in place of a part's populations (:mod:`popnavshift.populations.nulls`):
     ``swap`` permutations of the matched pair, or ``sized`` random subsets of mixed
-    matched in size to each of the part's populations."""
+    matched in size to each of the part's populations (each kind's populations are
+    declared in :data:`popnavshift.populations.identity.NULL_KINDS`)."""
 
     kind: Literal["swap", "sized"]
     replicates: Annotated[int, Field(strict=True, ge=1, le=999)] = 19

@@ -19,7 +19,7 @@ from ..errors import InputError, UnknownNameError
 from ..hashing import stable_seed
 from ..personas.fields import HIGH_TIME_PRESSURE, MOBILITY_SUPPORT
 from ..tables import PARAMS, check_table
-from .identity import ARMS, MATCHED_PAIR, SIZED_SOURCE, PopulationSpec
+from .identity import ARMS, MATCHED_PAIR, NULL_KINDS, SIZED_SOURCE, PopulationSpec, null_kind
 from .nulls import sized_subset, swap_variants
 
 POPULATIONS: tuple[str, ...] = (
@@ -168,12 +168,15 @@ def population_order(names) -> list[str]:
 
 
 def is_known(name: str) -> bool:
-    """Whether ``name`` is a built-in population, a split half or a null population
-    (whose size-matched source is itself known)."""
+    """Whether ``name`` is a built-in population, a split half or a null population: one
+    its kind (:data:`.identity.NULL_KINDS`) names for the known populations, none a null,
+    it stands in for."""
     spec = PopulationSpec.parse(name)
     if spec.is_null:
-        return spec.role == "swap_null" or (spec.base != SIZED_SOURCE and is_known(spec.base)
-                                            and not PopulationSpec.parse(spec.base).is_null)
+        kind = NULL_KINDS[null_kind(spec)]
+        of = kind.stands_for(spec)
+        return (all(is_known(p) and not PopulationSpec.parse(p).is_null for p in of)
+                and spec in kind.replicate(spec.replicate, of))
     return name in POPULATIONS + SPLIT_HALVES
 
 

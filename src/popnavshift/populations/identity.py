@@ -9,11 +9,14 @@ the one place it is written (:attr:`PopulationSpec.name`) and read
 (:meth:`PopulationSpec.parse`), as :class:`popnavshift.populations.perturb.ProfileSet`
 is for profile sets. The runs and pedestrians tables carry the role and the replicate
 as columns (:meth:`PopulationSpec.columns`), so a reader selects by them, not by name.
+Each null design kind is declared once, in :data:`NULL_KINDS`: the role of its populations,
+the populations of its replicate k and what a null population of it stands in for.
 """
 
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
@@ -71,7 +74,8 @@ class PopulationSpec:
 
     @property
     def is_null(self) -> bool:
-        return self.role in ("swap_null", "sized_null")
+        """Whether it is a population of a null design (:data:`NULL_KINDS`)."""
+        return any(kind.role == self.role for kind in NULL_KINDS.values())
 
     @classmethod
     def parse(cls, name: str) -> PopulationSpec:
@@ -88,3 +92,34 @@ class PopulationSpec:
     def columns(self) -> dict[str, object]:
         """:data:`popnavshift.tables.POPULATION_COLUMNS` of this population."""
         return {"population_role": self.role, "null_replicate": self.replicate}
+
+
+@dataclass(frozen=True)
+class NullKind:
+    """A kind of null design (a study part's ``null_design.kind``): the ``role`` of its
+    populations; ``replicate(k, populations)``, the populations of its replicate k standing
+    in for a part's ``populations`` (none, or a ValueError, when it cannot stand in for
+    them); ``stands_for(spec)``, the observed populations one of them stands in for; and
+    its replicates in words (``words``: "against 9 swap permutations of their profiles")."""
+
+    role: Role
+    replicate: Callable[[int, tuple[str, ...]], tuple[PopulationSpec, ...]]
+    stands_for: Callable[[PopulationSpec], tuple[str, ...]]
+    words: str
+
+
+#: Every null design kind, by its name in a study file.
+NULL_KINDS: dict[str, NullKind] = {
+    "swap": NullKind("swap_null",
+                     lambda k, _: tuple(PopulationSpec.swap(k, arm) for arm in ARMS),
+                     lambda _: MATCHED_PAIR, "swap permutations of their profiles"),
+    "sized": NullKind("sized_null",
+                      lambda k, pops: tuple(PopulationSpec.sized(p, k) for p in pops
+                                            if p != SIZED_SOURCE),
+                      lambda spec: (spec.base,), "size-matched random subsets of mixed"),
+}
+
+
+def null_kind(spec: PopulationSpec) -> str:
+    """The name of the null design kind the null population ``spec`` belongs to."""
+    return next(name for name, kind in NULL_KINDS.items() if kind.role == spec.role)

@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 from ..hashing import stable_seed
-from .identity import ARMS, SIZED_SOURCE, PopulationSpec
+from .identity import NULL_KINDS, PopulationSpec
 
 
 def population_columns(name: str) -> dict[str, object]:
@@ -85,10 +85,8 @@ def sized_subset(source_ids: list[str], size: int, of: str, replicate: int,
 
 
 def null_populations(kind: str, replicates: int, populations: tuple[str, ...]) -> tuple[str, ...]:
-    """The population names of a null design: ``replicates`` swap permutations (both
-    arms) or size-matched subsets of each of ``populations`` but ``mixed``."""
-    if kind == "swap":
-        return tuple(PopulationSpec.swap(k, arm).name for k in range(1, replicates + 1)
-                     for arm in ARMS)
-    return tuple(PopulationSpec.sized(p, k).name for k in range(1, replicates + 1)
-                 for p in populations if p != SIZED_SOURCE)
+    """The population names of a null design: replicates 1 … ``replicates`` of its kind
+    (:data:`.identity.NULL_KINDS`: swap permutations, both arms; size-matched subsets of
+    each of ``populations`` but ``mixed``) standing in for ``populations``."""
+    return tuple(spec.name for k in range(1, replicates + 1)
+                 for spec in NULL_KINDS[kind].replicate(k, populations))

@@ -26,14 +26,15 @@ from ..analysis.verdicts import (
     UNDECIDED,
     min_nulls_permutation,
 )
+from ..populations.identity import NULL_KINDS
 from .blocks import pct
 from .figures import controller_label, pop_label
 
 BURDEN = names("burden")
 ROBOT = names("robot")
 LABELS = {m.name: m.label for m in RANKED_METRICS}
-NULL_WORDS = {"swap": "swap permutations of their profiles",
-              "sized": "size-matched random subsets of mixed"}
+#: each null design kind's replicates in words (declared with the kind)
+NULL_WORDS = {name: kind.words for name, kind in NULL_KINDS.items()}
 
 
 def pp(x: float, signed: bool = True) -> str:

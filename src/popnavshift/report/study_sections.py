@@ -14,7 +14,7 @@ import pandas as pd
 from ..analysis.study import Analysis
 from ..engine.folder import StudyFolder
 from ..populations.build import population_order
-from ..populations.identity import PopulationSpec
+from ..populations.identity import NULL_KINDS, PopulationSpec
 from .blocks import Cell, Section, figure, fmt, para, pct, table
 from .figures import controller_label, pop_label
 
@@ -41,12 +41,18 @@ def populations_section(study: StudyFolder, analysed: list[str], figs: dict[str,
     return s
 
 
+#: the populations section's words for a null design kind (default: the kind's own)
+NULL_ROWS = {"swap_null": "swap permutations of the matched pair (2 arms each)",
+             "sized_null": "size-matched random subsets of mixed (one per cohort)"}
+
+
 def null_rows(sizes: pd.Series, specs: dict[str, PopulationSpec]) -> list[list[str]]:
     """One line per null design among the populations (swap permutations, size-matched
-    subsets): how many replicates and populations, and the members of each."""
+    subsets, any kind of :data:`~popnavshift.populations.identity.NULL_KINDS`): how many
+    replicates and populations, and the members of each."""
     rows = []
-    for role, words in (("swap_null", "swap permutations of the matched pair (2 arms each)"),
-                        ("sized_null", "size-matched random subsets of mixed (one per cohort)")):
+    for kind in NULL_KINDS.values():
+        role, words = kind.role, NULL_ROWS.get(kind.role, kind.words)
         names = [p for p, s in specs.items() if s.role == role]
         if not names:
             continue
