@@ -17,6 +17,8 @@ import numpy as np
 import pandas as pd
 
 from popnavshift.analysis import cell_key
+from popnavshift.populations.identity import PopulationSpec
+from popnavshift.populations.nulls import null_populations
 from popnavshift.tables import NO_ROBOT
 
 Effect = Callable[[int, str], float]  # (cell index, controller) → added delay [s]
@@ -87,3 +89,11 @@ def crossover(cells: Sequence[int], size: float, sign: float) -> Effect:
         return sign * size if (cell in chosen and controller == "a") else 0.0
 
     return effect
+
+
+def design_specs(runs: pd.DataFrame, kind: str, of: Sequence[str] = ()) -> list[PopulationSpec]:
+    """The populations of ``runs`` as a study would index them: the replicates of a
+    ``kind`` null design standing in for ``of`` that ``runs`` hold, the rest conditions."""
+    names = set(runs["population"])
+    nulls = [s for s in null_populations(kind, 99, tuple(of)) if s.name in names]
+    return nulls + [PopulationSpec(n) for n in sorted(names - {s.name for s in nulls})]

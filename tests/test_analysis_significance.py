@@ -22,7 +22,7 @@ from popnavshift.analysis.significance import (
 )
 from popnavshift.analysis.verdicts import ABOVE, BELOW, clopper_pearson
 from popnavshift.populations.identity import MATCHED_PAIR, PopulationSpec
-from synth_study import crossover, no_effect, synthetic_cells, synthetic_study
+from synth_study import crossover, design_specs, no_effect, synthetic_cells, synthetic_study
 
 CROSS_CELLS = (0, 1, 2, 3, 4, 5)
 
@@ -39,8 +39,7 @@ def swap_study(n_null: int, *, inject: float, seed: int, **kw):
 
 
 def analyse_matched(runs, peds, *, n_boot=200, seed=0, metrics=("mean_delay", "robot_time")):
-    pops = list(runs["population"].unique())
-    designs = headline_designs(pops, list(MATCHED_PAIR))
+    designs = headline_designs(design_specs(runs, "swap"), list(MATCHED_PAIR))
     return run_tests(runs, peds, designs, list(MATCHED_PAIR), rng=np.random.default_rng(seed),
                      n_boot=n_boot, metrics=metrics)
 
@@ -225,7 +224,8 @@ def sized_study(n_null: int, *, inject: float, seed: int, **kw):
 
 def sized_headline(runs, peds, *, n_boot=150, seed=0, rule="sig"):
     obs = ["mixed", "high_caution", "low_robot_trust"]
-    designs = {"all_pairs": headline_designs(list(runs["population"].unique()), obs)["all_pairs"]}
+    specs = design_specs(runs, "sized", obs)
+    designs = {"all_pairs": headline_designs(specs, obs)["all_pairs"]}
     t = run_tests(runs, peds, designs, obs, rng=np.random.default_rng(seed), n_boot=n_boot,
                   metrics=("mean_delay",))
     h = t.headline

@@ -79,11 +79,11 @@ def test_an_interrupted_compaction_leaves_the_old_tables_and_no_record(
     before = {n: (folder / n).read_bytes() for n in ("runs.parquet", "pedestrians.parquet")}
     chunks = []
 
-    def failing(frames, name, key):
+    def failing(frames, name, key, specs):
         chunks.append(name)
         if len(chunks) == 5:  # mid-way: two episodes written to the new files
             raise KeyboardInterrupt
-        return real(frames, name, key)
+        return real(frames, name, key, specs)
 
     real = compact._sorted_chunk
     monkeypatch.setattr(compact, "_sorted_chunk", failing)

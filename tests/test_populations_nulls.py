@@ -9,7 +9,7 @@ from popnavshift.errors import ConfigError
 from popnavshift.personas.synthetic import generate_personas
 from popnavshift.personas.variants import matched_ids
 from popnavshift.populations.build import POPULATIONS, membership
-from popnavshift.populations.identity import PopulationSpec
+from popnavshift.populations.identity import PopulationSpec, index_of
 from popnavshift.populations.nulls import (
     null_populations,
     sized_subset,
@@ -82,15 +82,25 @@ def sized_name(of: str, k: int) -> str:
     return PopulationSpec.sized(of, k).name
 
 
-def test_population_names_parse_into_their_spec_and_back():
-    assert PopulationSpec.parse("matched_swap12_b") == PopulationSpec("matched", "swap_null",
-                                                                       12, "b")
-    assert PopulationSpec.parse("high_caution_sized3") == PopulationSpec.sized("high_caution", 3)
-    assert PopulationSpec.parse("mixed_half_b") == PopulationSpec("mixed", "half", 0, "b")
-    for name in ("matched_swap0_a", "mixed", "high_caution_sized0"):  # not nulls: replicate 0
-        assert PopulationSpec.parse(name) == PopulationSpec(name)
-    for name in ("matched_swap3_a", "low_robot_trust_sized12", "mixed_half_a", "homogeneous"):
-        assert PopulationSpec.parse(name).name == name
+def test_population_names_are_written_from_their_spec_and_looked_up_not_parsed():
+    assert PopulationSpec.swap(12, "b").name == "matched_swap12_b"
+    assert PopulationSpec.sized("high_caution", 3).name == "high_caution_sized3"
+    assert PopulationSpec.half("mixed", "b").name == "mixed_half_b"
+    study = study_from_dict({"name": "t", "parts": {
+        "main": {"populations": ["mixed", "high_caution", "mixed_half_a"]},
+        "null": {"populations": ["high_caution"], "null_design": {"kind": "sized",
+                                                                  "replicates": 2}}}}, "t")
+    assert study.population_specs() == {
+        "mixed": PopulationSpec("mixed"), "high_caution": PopulationSpec("high_caution"),
+        "mixed_half_a": PopulationSpec.half("mixed", "a"),
+        **{sized_name("high_caution", k): PopulationSpec.sized("high_caution", k)
+           for k in (1, 2)}}
+    # a null replicate comes from a null design, never from a name a part lists
+    for name in ("matched_swap1_a", "high_caution_sized2"):
+        with pytest.raises(ConfigError, match="unknown population"):
+            study_from_dict({"name": "t", "parts": {"main": {"populations": [name]}}}, "t")
+    with pytest.raises(ValueError, match="rename the condition"):
+        index_of([PopulationSpec("x_sized1"), PopulationSpec.sized("x", 1)])
 
 
 def test_a_swap_null_part_stands_for_the_matched_pair():
@@ -105,17 +115,18 @@ def test_a_swap_null_part_stands_for_the_matched_pair():
 
 
 def test_population_columns_say_what_a_population_is():
-    from popnavshift.populations.nulls import population_columns, with_population_columns
+    from popnavshift.populations.nulls import with_population_columns
 
-    assert population_columns("mixed") == {"population_role": "observed", "null_replicate": 0}
-    assert population_columns("matched_swap7_a") == {"population_role": "swap_null",
+    assert PopulationSpec("mixed").columns() == {"population_role": "observed",
+                                                 "null_replicate": 0}
+    assert PopulationSpec.swap(7, "a").columns() == {"population_role": "swap_null",
                                                      "null_replicate": 7}
-    assert population_columns("high_caution_sized3") == {"population_role": "sized_null",
-                                                         "null_replicate": 3}
-    assert population_columns("mixed_half_b")["population_role"] == "half"
+    assert PopulationSpec.sized("high_caution", 3).columns() == {
+        "population_role": "sized_null", "null_replicate": 3}
+    assert PopulationSpec.half("mixed", "b").columns()["population_role"] == "half"
     import pandas as pd
 
     old = pd.DataFrame({"population": ["mixed", "matched_swap2_b"]})  # stored before them
-    filled = with_population_columns(old)
+    filled = with_population_columns(old, index_of([PopulationSpec.swap(2, "b")]))
     assert list(filled["population_role"]) == ["observed", "swap_null"]
     assert list(filled["null_replicate"]) == [0, 2]

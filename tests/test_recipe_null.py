@@ -32,18 +32,10 @@ NULL_RECIPE = {
     "populations/identity.py": [
         ('Role = Literal["observed", "swap_null", "sized_null", "half"]',
          'Role = Literal["observed", "swap_null", "sized_null", "half", "relabel_null"]'),
-        ('_HALF = re.compile(r"^(.+)_half_([ab])$")\n',
-         '_HALF = re.compile(r"^(.+)_half_([ab])$")\n'
-         '_RELABEL = re.compile(r"^(.+)_vs_(.+)_relabel(\\d+)_([ab])$")\n'),
         ('            return f"{self.base}_half_{self.arm}"\n',
          '            return f"{self.base}_half_{self.arm}"\n'
          '        if self.role == "relabel_null":\n'
          '            return f"{self.base}_relabel{self.replicate}_{self.arm}"\n'),
-        ('        if (m := _SWAP.match(name)) and int(m.group(1)) >= 1:\n',
-         '        if (m := _RELABEL.match(name)) and int(m.group(3)) >= 1:\n'
-         '            return cls(f"{m.group(1)}_vs_{m.group(2)}", "relabel_null",\n'
-         '                       int(m.group(3)), m.group(4))\n'
-         '        if (m := _SWAP.match(name)) and int(m.group(1)) >= 1:\n'),
         ("#: Every null design kind, by its name in a study file.\n",
          '''def relabelled(k: int, pair: tuple[str, ...]) -> tuple[PopulationSpec, ...]:
     """Arms a and b of relabelling k of a pair of populations."""
@@ -65,9 +57,9 @@ NULL_RECIPE = {
         ('        if spec.role == "sized_null":\n',
          '''        if spec.role == "relabel_null":  # the pair's members pooled, split again
             first, second = spec.base.split("_vs_")
-            pool = members(first) + members(second)
+            pool = members(KNOWN[first]) + members(KNOWN[second])
             rng = np.random.default_rng(stable_seed("relabel", seed, spec.base, spec.replicate))
-            order, n = rng.permutation(len(pool)), len(members(first))
+            order, n = rng.permutation(len(pool)), len(members(KNOWN[first]))
             return sorted(pool[i] for i in (order[:n] if spec.arm == "a" else order[n:]))
         if spec.role == "sized_null":
 '''),
@@ -75,21 +67,20 @@ NULL_RECIPE = {
     "engine/study.py": [('    kind: Literal["swap", "sized"]\n',
                          '    kind: Literal["swap", "sized", "relabel"]\n')],
     "analysis/nulls.py": [
-        ("from ..populations.identity import ARMS,",
-         "from ..populations.identity import NULL_KINDS, ARMS,"),
+        ("    ARMS,\n    MATCHED_PAIR,\n", "    ARMS,\n    MATCHED_PAIR,\n    NULL_KINDS,\n"),
         ('        out["all_pairs"] = (pairs, [sized_pairs(pairs, k, swap=swap) for k in reps])\n',
          '        out["all_pairs"] = (pairs, relabel_pairs(populations, pairs)\n'
          '                            or [sized_pairs(pairs, k, swap=swap) for k in reps])\n'),
         ("", '''
 
-def relabel_pairs(populations: Sequence[str], pairs: Sequence[tuple[str, str]]
+def relabel_pairs(populations: Collection[PopulationSpec], pairs: Sequence[tuple[str, str]]
                   ) -> list[list[tuple[str, str]]]:
     """One list per relabelling k the study ran for every one of ``pairs``: its arms."""
-    reps = sorted({s.replicate for s in map(PopulationSpec.parse, populations)
-                   if s.role == "relabel_null"})
+    reps = sorted({s.replicate for s in populations if s.role == "relabel_null"})
     designs = [[tuple(s.name for s in NULL_KINDS["relabel"].replicate(k, pair))
                 for pair in pairs] for k in reps]
-    return [d for d in designs if {p for pair in d for p in pair} <= set(populations)]
+    have = {s.name for s in populations}
+    return [d for d in designs if {p for pair in d for p in pair} <= have]
 '''),
     ],
 }

@@ -193,7 +193,7 @@ def test_the_worker_records_a_controller_error_and_goes_on(user_path):
     runs = tuple(Run(EPISODE, "mixed", c, "orca", "A", "main")
                  for c in ("none", "user_ctrls:RaisesNearPeds", CLASS_SPEC))
     _, table, peds, _ = run_batch(Batch(EPISODE, "orca", "A", runs),
-                                  Context(populations=members(), episode_seed=0))
+                                  Context(populations=members(), episode_seed=0, specs={}))
     out = table.set_index("controller")
     assert out.loc["user_ctrls:RaisesNearPeds", "outcome"] == "controller_error"
     assert "a pedestrian is too close" in out.loc["user_ctrls:RaisesNearPeds", "error"]
@@ -212,7 +212,7 @@ def test_a_repeated_controller_error_is_recorded_for_each_run(user_path):
                  for p in ("mixed", "twin"))
     _, table, peds, simulated = run_batch(Batch(EPISODE, "orca", "A", runs),
                                           Context(populations=pd.concat([members(), twin]),
-                                                  episode_seed=0))
+                                                  episode_seed=0, specs={}))
     assert simulated == 1 and peds.empty
     assert list(table["outcome"]) == ["controller_error"] * 2
     assert table["error"].nunique() == 1 and "too close" in table["error"].iloc[0]

@@ -16,6 +16,7 @@ import yaml
 from popnavshift.analysis.evidence import test_comparisons as run_tests
 from popnavshift.analysis.nulls import headline_designs
 from popnavshift.analysis.verdicts import decide
+from popnavshift.engine.folder import read_study_folder
 from popnavshift.engine.runner import run_study
 from popnavshift.engine.study import study_from_dict
 from popnavshift.report import build_report
@@ -120,7 +121,8 @@ def test_the_headline_is_recomputed_from_the_parquet_tables(study):
     pops = ["matched_base", "matched_deadline"] + [f"matched_swap{k}_{a}" for k in (1, 2, 3)
                                                    for a in "ab"]
     r, p = runs[runs["population"].isin(pops)], peds[peds["population"].isin(pops)]
-    designs = {"matched": headline_designs(pops, obs)["matched"]}
+    index = read_study_folder(study).population_specs
+    designs = {"matched": headline_designs([index[p] for p in pops], obs)["matched"]}
     got = run_tests(r, p, designs, obs, rng=np.random.default_rng([0, 0]), n_boot=N_BOOT)
     table = pd.read_csv(study / "report" / "tables" / "evidence_headline.csv")
     table = table[table["comparison"] == "matched"].set_index(["metric", "rule"])

@@ -84,8 +84,8 @@ def test_a_worker_batch_gives_the_runs_of_simulate_with_assigned_slots():
     spec = get_episode("sidewalk-w1.8-d0.2-s1.0-v1")
     runs = tuple(Run(spec.id, pop, ctrl, "orca", "A", "main")
                  for pop in ("mixed", "slow") for ctrl in ("none", "robot_orca", "reactive"))
-    _, run_table, ped_table, _ = run_batch(Batch(spec.id, "orca", "A", runs),
-                                           Context(populations=population, episode_seed=0))
+    context = Context(populations=population, episode_seed=0, specs={})
+    _, run_table, ped_table, _ = run_batch(Batch(spec.id, "orca", "A", runs), context)
     for i, r in enumerate(runs):
         members_of = population[population["population"] == r.population]
         expected = simulate(spec, assign_slots(spec, members_of.sort_values("persona_id")),
@@ -138,7 +138,7 @@ def test_a_batch_simulates_runs_with_equal_inputs_once_and_gives_each_its_own_ro
     spec = get_episode("sidewalk-w1.8-d0.2-s1.0-v1")
     pops, ctrls = ("mixed", "twin", "slow"), ("none", "robot_orca", "reactive")
     runs = tuple(Run(spec.id, p, c, "orca", "A", "main") for p in pops for c in ctrls)
-    context = Context(populations=population, episode_seed=0)
+    context = Context(populations=population, episode_seed=0, specs={})
     _, run_table, ped_table, simulated = run_batch(Batch(spec.id, "orca", "A", runs), context)
     assert simulated == 6
     for p in pops:

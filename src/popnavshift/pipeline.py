@@ -26,7 +26,7 @@ from .personas.load import load_personas
 from .personas.variants import MATCHED_N_DEFAULT, matched_ids
 from .populations.build import POPULATIONS, SPLIT_HALVES, attach_profiles, membership
 from .populations.figures import write_profile_figures
-from .populations.identity import MATCHED_PAIR
+from .populations.identity import MATCHED_PAIR, PopulationSpec
 from .populations.perturb import (
     BLOCKS,
     label,
@@ -91,7 +91,7 @@ class PopulationSettings:
     structure: bool = False
     #: null populations the study runs (:mod:`popnavshift.populations.nulls`), and the
     #: profile sets they are run with (their members get only those profiles)
-    nulls: tuple[str, ...] = ()
+    nulls: tuple[PopulationSpec, ...] = ()
     null_mappings: tuple[str, ...] = ()
     #: the populations the study runs: one of them empty is an error, any other empty
     #: one is left out (None: every population is required). Not in the stage's stamp:
@@ -220,9 +220,10 @@ def run_populations(folder: Path, s: PopulationSettings) -> pd.DataFrame:
     matched = matched_ids(personas, s.matched_n, s.seed)
     members = membership(
         personas, responses, profiles[profiles["mapping"] == "A"], matched,
-        populations=POPULATIONS + SPLIT_HALVES + s.nulls, seed=s.seed, required=s.required,
+        populations=[*POPULATIONS, *SPLIT_HALVES, *s.nulls], seed=s.seed,
+        required=s.required,
     )
-    is_null = members["population"].isin(s.nulls)
+    is_null = members["population"].isin([spec.name for spec in s.nulls])
     tables = []
     for set_label in profiles["mapping"].unique():
         these = profiles[profiles["mapping"] == set_label]

@@ -217,7 +217,7 @@ NO_ROBOT = "none"
 #: :meth:`popnavshift.populations.perturb.ProfileSet.columns`)
 PROFILE_SET_COLUMNS: tuple[str, ...] = (
     "profile_set", "profile_base", "perturbation", "perturbation_arg")
-#: what a run's population is, as columns (values: populations.nulls.population_columns)
+#: what a run's population is, as columns (values: PopulationSpec.columns of the study's index)
 POPULATION_COLUMNS: tuple[str, ...] = ("population_role", "null_replicate")
 
 _NO_ROBOT_NAN = "no robot (controller none), or the controller raised (controller_error)"

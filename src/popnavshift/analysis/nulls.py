@@ -24,13 +24,20 @@ Pure functions; definitions in ``docs/analysis.md`` §7 and §10.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
+from collections.abc import Collection, Iterable, Mapping, Sequence
 
 import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..populations.identity import ARMS, MATCHED_PAIR, SIZED_SOURCE, PopulationSpec, null_kind
+from ..populations.identity import (
+    ARMS,
+    MATCHED_PAIR,
+    SIZED_SOURCE,
+    PopulationSpec,
+    null_kind,
+    spec_of,
+)
 from .reversals import population_pairs
 from .significance import Orderings, PairCounts, pair_counts
 from .verdicts import decide
@@ -39,21 +46,21 @@ RULES: tuple[str, ...] = ("sig", "raw")
 CI_LEVEL = 0.95  # coverage of the excess interval
 
 
-def swap_replicates(populations: Sequence[str]) -> list[int]:
+def swap_replicates(populations: Iterable[PopulationSpec]) -> list[int]:
     """The swap permutations whose two arms are both among ``populations``, sorted."""
     arms: dict[int, set[str]] = {}
-    for p in populations:
-        spec = PopulationSpec.parse(p)
+    for spec in populations:
         if spec.role == "swap_null":
             arms.setdefault(spec.replicate, set()).add(spec.arm)
     return sorted(k for k, a in arms.items() if a == {"a", "b"})
 
 
-def sized_replicates(populations: Sequence[str], observed: Sequence[str]) -> list[int]:
+def sized_replicates(populations: Collection[PopulationSpec], observed: Sequence[str]
+                     ) -> list[int]:
     """The size-matched replicates that hold a subset for every one of ``observed``
     (``mixed`` stands for itself), sorted."""
-    have = set(populations)
-    reps = {s.replicate for s in map(PopulationSpec.parse, populations) if s.role == "sized_null"}
+    have = {s.name for s in populations}
+    reps = {s.replicate for s in populations if s.role == "sized_null"}
     need = [p for p in observed if p != SIZED_SOURCE]
     return sorted(k for k in reps if all(PopulationSpec.sized(p, k).name in have for p in need))
 
@@ -237,10 +244,11 @@ def family_verdicts(headline: pd.DataFrame, null_rates: pd.DataFrame, *,
     return out
 
 
-def headline_designs(populations: Sequence[str],
+def headline_designs(populations: Collection[PopulationSpec],
                      observed_populations: Sequence[str]) -> dict[str, tuple[list, list]]:
     """The study's headline comparisons and their nulls: label → (observed pairs, one
-    list of pairs per null replicate; empty when the study ran no null).
+    list of pairs per null replicate; empty when the study ran no null). ``populations``:
+    those the study ran (``Study.population_specs``).
 
     ``matched``: the matched pair against the swap permutations present;
     ``all_pairs``: every pair of ``observed_populations`` against the size-matched
@@ -251,7 +259,7 @@ def headline_designs(populations: Sequence[str],
     member of mixed) gets one random member.
     """
     out: dict[str, tuple[list, list]] = {}
-    if set(MATCHED_PAIR) <= set(populations):
+    if set(MATCHED_PAIR) <= {s.name for s in populations}:
         out["matched"] = ([MATCHED_PAIR], [swap_pairs(k) for k in swap_replicates(populations)])
     obs = list(observed_populations)
     if len(obs) >= 2 and not (len(obs) == 2 and set(obs) == set(MATCHED_PAIR) and out):
@@ -270,7 +278,8 @@ DEFAULT_NULL = {"matched": "swap", "all_pairs": "sized"}
 
 
 def design_null(label: str, observed: Sequence[tuple[str, str]],
-                nulls: Sequence[Sequence[tuple[str, str]]]) -> str:
+                nulls: Sequence[Sequence[tuple[str, str]]],
+                specs: Mapping[str, PopulationSpec]) -> str:
     """The null design kind (:data:`popnavshift.populations.identity.NULL_KINDS`) comparison
     ``label`` is tested against: that of the replicates standing in for its first pair other
     than the matched pair (whose null is swap permutation k wherever the study ran it), or
@@ -278,7 +287,7 @@ def design_null(label: str, observed: Sequence[tuple[str, str]],
     if not nulls:
         return DEFAULT_NULL[label]
     i = next((j for j, pair in enumerate(observed) if set(pair) != set(MATCHED_PAIR)), 0)
-    spec = next(s for s in map(PopulationSpec.parse, nulls[0][i]) if s.is_null)
+    spec = next(s for s in (spec_of(specs, p) for p in nulls[0][i]) if s.is_null)
     return null_kind(spec)
 
 

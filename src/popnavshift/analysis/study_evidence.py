@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 
 from ..engine.folder import StudyFolder, main_part
-from ..populations.identity import PopulationSpec
+from ..populations.identity import spec_of
 from ..tables import NO_ROBOT
 from .calibrate import calibration_table
 from .evidence import complete_design, test_comparisons
@@ -52,10 +52,6 @@ from .verdicts import ALPHA
 PREFIX = "evidence_"
 
 
-def _is_observed(name: str) -> bool:
-    return PopulationSpec.parse(name).role == "observed"
-
-
 def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000,
                     level: float = LEVEL) -> tuple[dict[str, pd.DataFrame], dict[str, str]]:
     """Every evidence table of the study (see the module doc) and why any is missing."""
@@ -67,8 +63,10 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
                       & study.runs["mapping"].isin(mappings)]
     peds = study.pedestrians[study.pedestrians["backend"].isin(backends)
                              & study.pedestrians["mapping"].isin(mappings)]
-    present = list(runs["population"].unique())
-    observed = [p for p in populations if p in present and _is_observed(p)]
+    index = study.population_specs
+    present = [spec_of(index, p) for p in runs["population"].unique()]
+    conditions = {s.name for s in present if s.role == "observed"}
+    observed = [p for p in populations if p in conditions]
     designs = headline_designs(present, observed)
     if not designs:
         return {}, {"evidence": "the study has neither the matched pair nor two populations"}
@@ -91,7 +89,7 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
         tested = test_comparisons(r, p, one, obs_pops, rng=np.random.default_rng([rng_seed, i]),
                                   n_boot=n_boot, level=level)
         n_sets = int(seed_sets(r).nunique())
-        head = tested.headline.assign(null=design_null(label, obs_pairs, nulls),
+        head = tested.headline.assign(null=design_null(label, obs_pairs, nulls, index),
                                       seed_sets=n_sets, variants_per_cell=3 * n_sets)
         add = {"headline": head, "null_rates": tested.null_rates,
                "crossovers": tested.crossovers,

@@ -79,5 +79,5 @@ def run_plan(plan: BatchPlan, store: RunStore, context: Context, workers: int, *
                                       show_progress=show_progress)
     seconds = time.perf_counter() - started
     n_runs, n_peds = store.compact_files(plan.batches, plan.runs, plan.carried, plan.inputs,
-                                         plan.code if plan.carry else None)
+                                         plan.code if plan.carry else None, context.specs)
     return PlanResult(executed, simulated, seconds, n_runs, n_peds)

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import ctypes
 import gc
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import ExitStack, suppress
 from itertools import groupby
 from pathlib import Path
@@ -25,6 +25,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from ..io import atomic_path
+from ..populations.identity import PopulationSpec
 from ..populations.nulls import with_population_columns
 from ..populations.perturb import with_profile_set_columns
 from ..tables import PEDESTRIANS, RUN_KEY, RUNS, check_table
@@ -103,7 +104,8 @@ class CarriedRows:
         return out
 
 
-def _sorted_chunk(frames: list[pd.DataFrame], name: str, key: list[str]) -> pd.DataFrame:
+def _sorted_chunk(frames: list[pd.DataFrame], name: str, key: list[str],
+                  specs: Mapping[str, PopulationSpec]) -> pd.DataFrame:
     """One chunk of a table as the whole-table compaction made it: joined, ``error`` as
     a string column, sorted by ``key`` and checked."""
     df = pd.concat(frames, ignore_index=True)
@@ -112,7 +114,7 @@ def _sorted_chunk(frames: list[pd.DataFrame], name: str, key: list[str]) -> pd.D
             df["error"] = None
         df["error"] = df["error"].astype("string")  # all-None would be Arrow's null type
     df = with_profile_set_columns(df)  # rows stored before those columns existed
-    df = with_population_columns(df)
+    df = with_population_columns(df, specs)
     df = df.sort_values(key, kind="stable").reset_index(drop=True)
     return check_table(df, name)
 
@@ -143,12 +145,14 @@ class _TableWriter:
 
 
 def write_compacted(folder: Path, chunks: list[list[Shard]],
-                    carried: tuple[set[tuple], dict[tuple, str]] | None = None
-                    ) -> tuple[int, int]:
+                    carried: tuple[set[tuple], dict[tuple, str]] | None = None,
+                    specs: Mapping[str, PopulationSpec] | None = None) -> tuple[int, int]:
     """Write ``folder/runs.parquet`` and ``folder/pedestrians.parquet`` from the shard
     ``chunks`` (:func:`episode_chunks`) plus, with ``carried`` (the keys of the runs to
     carry and the part of each), those runs' rows of the present tables; returns their
-    row counts. Nothing replaces the present tables before both new ones are complete."""
+    row counts. Nothing replaces the present tables before both new ones are complete.
+    ``specs`` (the study's populations) fill the population columns of rows stored
+    before they existed."""
     readers = {name: CarriedRows(folder / file, *carried) if carried else None
                for name, file, _ in TABLES}
     with ExitStack() as stack:
@@ -164,7 +168,7 @@ def write_compacted(folder: Path, chunks: list[list[Shard]],
                         frames += reader.upto(last)
                     frames = [f for f in frames if not f.empty] or frames[:1]
                     if frames:
-                        writers[name].write(_sorted_chunk(frames, name, key))
+                        writers[name].write(_sorted_chunk(frames, name, key, specs or {}))
         finally:
             for w in writers.values():
                 w.close()

@@ -22,7 +22,7 @@ import pyarrow.parquet as pq
 
 from ..episodes.specs import seed_set_id
 from ..errors import InputError
-from ..populations.build import population_order
+from ..populations.build import HALVES, population_order
 from ..populations.identity import PopulationSpec
 from ..tables import NO_ROBOT
 from .plan import select_episodes
@@ -40,6 +40,12 @@ class StudyFolder:
     metadata: dict[str, dict[str, Any]]  # personas.json, responses.json
     #: the manifest's study configuration, parsed (None when it names no part)
     study: Study | None = None
+
+    @property
+    def population_specs(self) -> dict[str, PopulationSpec]:
+        """The study's populations by name (``Study.population_specs``; empty without a
+        study configuration)."""
+        return self.study.population_specs() if self.study is not None else {}
 
     @property
     def seed(self) -> int | None:
@@ -147,17 +153,17 @@ def _isin(df: pd.DataFrame, column: str, values) -> pd.Series:
 
 
 def split_halves(populations) -> list[tuple[str, str, str]]:
-    """(population, half a, half b) for every pair of split-half names among ``populations``."""
-    specs = {PopulationSpec.parse(str(p)) for p in populations}
-    other = {s: PopulationSpec.half(s.base, "b") for s in specs if s.role == "half"}
-    return sorted((s.base, s.name, b.name) for s, b in other.items()
-                  if s.arm == "a" and b in specs)
+    """(population, half a, half b) for every pair of split halves (:data:`HALVES`) among
+    ``populations``."""
+    have = set(map(str, populations))
+    pairs = {(h.base, h.name, PopulationSpec.half(h.base, "b").name)
+             for h in HALVES if h.arm == "a"}
+    return sorted(p for p in pairs if {p[1], p[2]} <= have)
 
 
 def is_half(population: pd.Series) -> pd.Series:
-    """Whether each population of ``population`` is a split half."""
-    halves = [p for p in population.unique() if PopulationSpec.parse(str(p)).role == "half"]
-    return population.isin(halves)
+    """Whether each population of ``population`` is a split half (:data:`HALVES`)."""
+    return population.isin([h.name for h in HALVES])
 
 
 def main_grid(study: StudyFolder) -> tuple[pd.DataFrame, pd.DataFrame, str]:

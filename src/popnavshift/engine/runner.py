@@ -57,7 +57,7 @@ class RunReport:
 def population_settings(study: Study) -> PopulationSettings:
     used = {m for part in study.parts.values() for m in part.mappings}
     null_parts = [part for part in study.parts.values() if part.null_design is not None]
-    nulls = tuple(dict.fromkeys(p for part in null_parts for p in part.planned_populations))
+    nulls = tuple(dict.fromkeys(p for part in null_parts for p in part.planned_specs))
     return PopulationSettings(
         personas=study.personas,
         seed=study.seed,
@@ -140,7 +140,8 @@ def run_study(
     settings = population_settings(study)
     report.stages_run = run_stages(folder, settings, show_progress)
     populations = read_table(folder / "populations.parquet", "populations")
-    check_members(populations["population"].unique(), settings.required or ())
+    check_members(populations["population"].unique(), settings.required or (),
+                  study.population_specs())
     runs = plan_study(study, episodes)
     built = set(populations["mapping"])
     missing = sorted({r.mapping for r in runs} - built)
@@ -159,7 +160,8 @@ def run_study(
         report.seconds = time.perf_counter() - started
         return report
 
-    done = run_plan(plan, store, Context(populations, study.seed), workers,
+    context = Context(populations, study.seed, study.population_specs())
+    done = run_plan(plan, store, context, workers,
                     executor_name=executor_name, address=address, show_progress=show_progress)
     report.executed, report.simulated = done.executed, done.simulated
     report.compacted = True

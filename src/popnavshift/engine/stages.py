@@ -64,7 +64,7 @@ def _persona_settings(s: PopulationSettings) -> list[Any]:
 
 
 def _population_settings(s: PopulationSettings) -> list[Any]:
-    nulls = [list(s.nulls), list(s.null_mappings)] if s.nulls else []
+    nulls = [[spec.name for spec in s.nulls], list(s.null_mappings)] if s.nulls else []
     return [s.matched_n, *nulls]
 
 

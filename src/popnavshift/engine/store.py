@@ -15,6 +15,7 @@ unchanged inputs and code (:meth:`RunStore.carried`).
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from pathlib import Path
 
 import pandas as pd
@@ -23,6 +24,7 @@ import pyarrow.parquet as pq
 
 from ..errors import InputError
 from ..io import write_atomic, write_json
+from ..populations.identity import PopulationSpec
 from ..tables import RUN_KEY as TABLE_RUN_KEY
 from ..tables import RUNS
 from .compact import episode_chunks, write_compacted
@@ -199,7 +201,8 @@ class RunStore:
 
     def compact_files(self, batches: list[Batch], planned: list[Run] | None = None,
                       carried: set[tuple] | None = None, inputs: str = "",
-                      code: dict[str, str] | None = None) -> tuple[int, int]:
+                      code: dict[str, str] | None = None,
+                      specs: Mapping[str, PopulationSpec] | None = None) -> tuple[int, int]:
         """Write the two study tables, sorted by key: every batch's shards, plus the
         ``carried`` runs (keys) of the present compacted tables, with their part as
         ``planned`` now says; returns their row counts. Streamed a few episodes at a
@@ -210,15 +213,17 @@ class RunStore:
         if carried:
             keep = (set(carried), {r.key: r.part for r in planned or []})
         self._set_record(None)
-        counts = write_compacted(self.folder, episode_chunks(shards), keep)
+        counts = write_compacted(self.folder, episode_chunks(shards), keep, specs)
         if code is not None:
             self._set_record({"inputs": inputs, "code": code})
         return counts
 
     def compact(self, batches: list[Batch], planned: list[Run] | None = None,
                 carried: set[tuple] | None = None, inputs: str = "",
-                code: dict[str, str] | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+                code: dict[str, str] | None = None,
+                specs: Mapping[str, PopulationSpec] | None = None
+                ) -> tuple[pd.DataFrame, pd.DataFrame]:
         """:meth:`compact_files`, then the two tables read back (for small studies)."""
-        self.compact_files(batches, planned, carried, inputs, code)
+        self.compact_files(batches, planned, carried, inputs, code, specs)
         return (pd.read_parquet(self.folder / "runs.parquet"),
                 pd.read_parquet(self.folder / "pedestrians.parquet"))

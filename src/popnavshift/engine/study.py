@@ -28,8 +28,8 @@ from ..errors import ConfigError, UnknownNameError
 from ..hashing import digest
 from ..paper import PAPER_CONTROLLERS, PAPER_POPULATIONS
 from ..pipeline import PersonaSource, RespondentSpec
-from ..populations.build import POPULATIONS, SPLIT_HALVES, is_known
-from ..populations.identity import MATCHED_PAIR, SIZED_SOURCE
+from ..populations.build import POPULATIONS, SPLIT_HALVES, is_known, known
+from ..populations.identity import MATCHED_PAIR, SIZED_SOURCE, PopulationSpec, index_of
 from ..populations.nulls import null_populations
 from ..populations.perturb import ProfileSet
 from ..sim.controllers.registry import controller_id
@@ -133,12 +133,18 @@ class Part(Strict):
         return (self.mapping,) if isinstance(self.mapping, str) else tuple(self.mapping)
 
     @property
-    def planned_populations(self) -> tuple[str, ...]:
-        """The populations this part runs: its own, or its null design's."""
+    def planned_specs(self) -> tuple[PopulationSpec, ...]:
+        """The populations this part runs, as identities: its own (conditions or split
+        halves, :data:`popnavshift.populations.build.KNOWN`), or its null design's."""
         if self.null_design is None:
-            return self.populations
+            return tuple(known(p) for p in self.populations)
         return null_populations(self.null_design.kind, self.null_design.replicates,
                                 self.populations)
+
+    @property
+    def planned_populations(self) -> tuple[str, ...]:
+        """The names of :attr:`planned_specs`."""
+        return tuple(spec.name for spec in self.planned_specs)
 
     @field_validator("controllers", mode="before")
     @classmethod
@@ -239,6 +245,20 @@ class Study(Strict):
     def part_with(self, role: str) -> tuple[str, Part] | None:
         """The (name, part) of the part with ``role``, or None."""
         return next(((n, p) for n, p in self.parts.items() if self.role(n) == role), None)
+
+    def population_specs(self) -> dict[str, PopulationSpec]:
+        """Every population the study's parts run, by name, as declared (a condition or a
+        split half it lists, a null replicate of a part's null design): the index readers
+        look a population up in, instead of reading its name."""
+        return index_of(spec for part in self.parts.values() for spec in part.planned_specs)
+
+    @model_validator(mode="after")
+    def _names_are_unique(self) -> Study:
+        try:
+            self.population_specs()
+        except ValueError as err:
+            raise ValueError(f"parts: {err}") from None
+        return self
 
     @model_validator(mode="after")
     def _one_part_per_role(self) -> Study:

@@ -24,13 +24,14 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
 from ..episodes.specs import EpisodeSpec, get_episode, seed_set_of
-from ..populations.nulls import population_columns
+from ..populations.identity import PopulationSpec, spec_of
 from ..populations.perturb import ProfileSet
 from ..sim.run import ControllerError, SimResult, failed_result, pedestrian_table, simulate
 from ..sim.slots import SlotProfiles, profiles_of_members
@@ -43,6 +44,8 @@ from .rebuild import member_arrays
 class Context:
     populations: pd.DataFrame  # the populations table (all mappings)
     episode_seed: int
+    #: the study's populations by name (``Study.population_specs``): their table columns
+    specs: Mapping[str, PopulationSpec]
 
 
 _CONTEXT: Context | None = None
@@ -157,7 +160,7 @@ def run_batch(
             "part": run.part,
             "episode": run.episode,
             "population": run.population,
-            **population_columns(run.population),
+            **spec_of(ctx.specs, run.population).columns(),
             "controller": run.controller,
             "backend": run.backend,
             "mapping": run.mapping,

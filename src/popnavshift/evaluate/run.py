@@ -191,7 +191,8 @@ def _run_extra(study: Study, part_name: str, controllers: tuple[str, ...], base_
         f"{n_todo:,} to run")
     populations = read_table(base_folder / "populations.parquet", "populations")
     out.mkdir(parents=True, exist_ok=True)
-    run_plan(plan, store, Context(populations, study.seed), workers, show_progress=show_progress)
+    context = Context(populations, study.seed, study.population_specs())
+    run_plan(plan, store, context, workers, show_progress=show_progress)
     tables = (pd.read_parquet(out / "runs.parquet"), pd.read_parquet(out / "pedestrians.parquet"))
     return tables, plan.reused, n_todo
 

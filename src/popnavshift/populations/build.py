@@ -9,7 +9,7 @@ episode takes member ⌊u_k · n⌋ (see :mod:`popnavshift.episodes`).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Collection, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from functools import cache
 
 import numpy as np
@@ -19,7 +19,7 @@ from ..errors import InputError, UnknownNameError
 from ..hashing import stable_seed
 from ..personas.fields import HIGH_TIME_PRESSURE, MOBILITY_SUPPORT
 from ..tables import PARAMS, check_table
-from .identity import ARMS, MATCHED_PAIR, NULL_KINDS, SIZED_SOURCE, PopulationSpec, null_kind
+from .identity import ARMS, MATCHED_PAIR, SIZED_SOURCE, PopulationSpec, index_of, spec_of
 from .nulls import sized_subset, swap_variants
 
 POPULATIONS: tuple[str, ...] = (
@@ -40,7 +40,11 @@ POPULATION_GROUPS: dict[str, tuple[str, ...]] = {
     "matched": MATCHED_PAIR,
 }
 #: Random halves of mixed, for the noise floor: ``mixed_half_a`` / ``mixed_half_b``.
-SPLIT_HALVES: tuple[str, ...] = tuple(PopulationSpec.half("mixed", arm).name for arm in ARMS)
+HALVES: tuple[PopulationSpec, ...] = tuple(PopulationSpec.half("mixed", arm) for arm in ARMS)
+SPLIT_HALVES: tuple[str, ...] = tuple(h.name for h in HALVES)
+#: Every population a study part may list by name, as its identity: the conditions and
+#: the split halves (a null replicate comes from a part's ``null_design``, never a name).
+KNOWN: dict[str, PopulationSpec] = index_of([*map(PopulationSpec, POPULATIONS), *HALVES])
 HOMOGENEOUS_ID = "median"
 LOW_TRUST_MAX = 0.25
 HIGH_CAUTION_QUANTILE = 0.75
@@ -73,15 +77,14 @@ DEFINITIONS: dict[str, str] = {
 }
 
 
-def definition(name: str) -> str:
-    """What population ``name`` holds, in words (nulls and halves by their source)."""
-    spec = PopulationSpec.parse(name)
+def definition(spec: PopulationSpec) -> str:
+    """What population ``spec`` holds, in words (nulls and halves by their source)."""
     if spec.is_null:
         of = "the matched pair" if spec.role == "swap_null" else repr(spec.base)
         return f"a null replicate of {of}"
     if spec.role == "half":
-        return f"a random half of {definition(spec.base)}"
-    return DEFINITIONS.get(name, name)
+        return f"a random half of {definition(PopulationSpec(spec.base))}"
+    return DEFINITIONS.get(spec.name, spec.name)
 
 
 def membership(
@@ -89,7 +92,7 @@ def membership(
     responses: pd.DataFrame,
     profiles_a: pd.DataFrame,
     matched: Sequence[str],
-    populations: Sequence[str] = POPULATIONS + SPLIT_HALVES,
+    populations: Sequence[str | PopulationSpec] = POPULATIONS + SPLIT_HALVES,
     seed: int = 0,
     required: Collection[str] | None = None,
 ) -> pd.DataFrame:
@@ -102,9 +105,7 @@ def membership(
     when it is ``required`` (default: all of them) and left out otherwise: a cohort
     a study does not run must not block it.
     """
-    for name in populations:
-        if not is_known(name):
-            raise UnknownNameError("population", name, POPULATIONS + SPLIT_HALVES)
+    specs = [p if isinstance(p, PopulationSpec) else known(p) for p in populations]
     base = (
         personas.merge(
             responses[responses["variant"] == "baseline"][["persona_id", "q_trust"]],
@@ -121,41 +122,44 @@ def membership(
     pair = sorted(set(matched) & have_deadline & set(base["persona_id"]))
 
     @cache
-    def members(name: str) -> list[tuple[str, str]]:
-        spec = PopulationSpec.parse(name)
+    def members(spec: PopulationSpec) -> list[tuple[str, str]]:
+        name = spec.name
         if spec.role == "swap_null":
             return list(zip(pair, swap_variants(pair, spec.replicate, spec.arm, seed),
                             strict=True))
         if spec.role == "sized_null":
-            source = [pid for pid, _ in members(SIZED_SOURCE)]
-            size = len(members(spec.base))
+            source = [pid for pid, _ in members(KNOWN[SIZED_SOURCE])]
+            size = len(members(KNOWN[spec.base]))
             return [(pid, "baseline")
                     for pid in sized_subset(source, size, spec.base, spec.replicate, seed)]
         if name == "homogeneous":
             return [(HOMOGENEOUS_ID, "baseline")]
         if name in MATCHED_PAIR:
             return [(pid, "baseline" if name == MATCHED_PAIR[0] else "deadline") for pid in pair]
-        if name in SPLIT_HALVES:
-            return [(pid, "baseline") for pid in split_half(base, name, seed)]
+        if spec.role == "half":
+            return [(pid, "baseline") for pid in split_half(base, spec, seed)]
         ids = base.loc[_SELECTORS[name](base).to_numpy(), "persona_id"]
         return [(str(pid), "baseline") for pid in ids]
 
-    rows = [(name, pid, variant) for name in populations for pid, variant in members(name)]
+    rows = [(spec.name, pid, variant) for spec in specs for pid, variant in members(spec)]
     df = pd.DataFrame(rows, columns=["population", "persona_id", "variant"])
     df["member"] = df.groupby("population", sort=False).cumcount().astype("int64")
-    check_members(df["population"], populations if required is None else required)
+    index = index_of(specs)
+    check_members(df["population"], list(index) if required is None else required, index)
     return df[["population", "member", "persona_id", "variant"]]
 
 
-def check_members(built: Collection[str], required: Collection[str]) -> None:
+def check_members(built: Collection[str], required: Collection[str],
+                  specs: Mapping[str, PopulationSpec]) -> None:
     """InputError naming the first ``required`` population without members in ``built``
-    and what it would hold."""
+    and what it would hold (``specs``: the study's index)."""
     have = set(built)
     empty = [p for p in required if p not in have]
     if empty:
         more = f" (and {len(empty) - 1} more)" if len(empty) > 1 else ""
         raise InputError(
-            f"population {empty[0]} has no members{more}: it holds {definition(empty[0])}",
+            f"population {empty[0]} has no members{more}: it holds "
+            f"{definition(spec_of(specs, empty[0]))}",
             hint="more personas (personas.n, matched_n) or another persona source; or "
                  "drop it from the study's populations")
 
@@ -168,21 +172,19 @@ def population_order(names) -> list[str]:
 
 
 def is_known(name: str) -> bool:
-    """Whether ``name`` is a built-in population, a split half or a null population: one
-    its kind (:data:`.identity.NULL_KINDS`) names for the known populations, none a null,
-    it stands in for."""
-    spec = PopulationSpec.parse(name)
-    if spec.is_null:
-        kind = NULL_KINDS[null_kind(spec)]
-        of = kind.stands_for(spec)
-        return (all(is_known(p) and not PopulationSpec.parse(p).is_null for p in of)
-                and spec in kind.replicate(spec.replicate, of))
-    return name in POPULATIONS + SPLIT_HALVES
+    """Whether a study part may list ``name``: a built-in condition or a split half."""
+    return name in KNOWN
 
 
-def split_half(base: pd.DataFrame, name: str, seed: int) -> list[str]:
-    """The sorted ids of one random half (seeded) of the population ``name`` splits."""
-    spec = PopulationSpec.parse(name)
+def known(name: str) -> PopulationSpec:
+    """The identity of the listed population ``name``; UnknownNameError if it is none."""
+    if name not in KNOWN:
+        raise UnknownNameError("population", name, tuple(KNOWN))
+    return KNOWN[name]
+
+
+def split_half(base: pd.DataFrame, spec: PopulationSpec, seed: int) -> list[str]:
+    """The sorted ids of one random half (seeded) of the population ``spec`` splits."""
     parent, half = spec.base, spec.arm
     ids = base.loc[_SELECTORS[parent](base).to_numpy(), "persona_id"].astype(str).to_numpy()
     rng = np.random.default_rng(stable_seed("split_half", seed, parent))

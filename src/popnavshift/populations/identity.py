@@ -3,20 +3,21 @@
 A study runs four kinds of population: the conditions it compares (``observed``), the
 replicates of its null designs (``swap_null``: an arm of a swap permutation of the
 matched pair; ``sized_null``: a size-matched random subset of ``mixed`` standing in for
-one condition) and the split halves of the noise floor (``half``). Their names are a
-grammar (``matched_swap7_a``, ``high_caution_sized3``, ``mixed_half_b``); this module is
-the one place it is written (:attr:`PopulationSpec.name`) and read
-(:meth:`PopulationSpec.parse`), as :class:`popnavshift.populations.perturb.ProfileSet`
-is for profile sets. The runs and pedestrians tables carry the role and the replicate
-as columns (:meth:`PopulationSpec.columns`), so a reader selects by them, not by name.
+one condition) and the split halves of the noise floor (``half``). Their names
+(``matched_swap7_a``, ``high_caution_sized3``, ``mixed_half_b``) are written in one place
+(:attr:`PopulationSpec.name`) and never read back: a spec comes from what declares it —
+a condition or a split half from the registry (:data:`popnavshift.populations.build.KNOWN`),
+a null replicate from its study part's null design (:data:`NULL_KINDS`) — and a study's
+populations are looked up by name in its index (``Study.population_specs``). The runs and
+pedestrians tables carry the role and the replicate as columns (:meth:`PopulationSpec.columns`),
+so a reader of a table selects by them.
 Each null design kind is declared once, in :data:`NULL_KINDS`: the role of its populations,
 the populations of its replicate k and what a null population of it stands in for.
 """
 
 from __future__ import annotations
 
-import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Literal
 
@@ -30,9 +31,6 @@ ARMS: tuple[str, str] = ("a", "b")
 SIZED_SOURCE = "mixed"
 
 Role = Literal["observed", "swap_null", "sized_null", "half"]
-_SWAP = re.compile(r"^matched_swap(\d+)_([ab])$")
-_SIZED = re.compile(r"^(.+)_sized(\d+)$")
-_HALF = re.compile(r"^(.+)_half_([ab])$")
 
 
 @dataclass(frozen=True)
@@ -77,18 +75,6 @@ class PopulationSpec:
         """Whether it is a population of a null design (:data:`NULL_KINDS`)."""
         return any(kind.role == self.role for kind in NULL_KINDS.values())
 
-    @classmethod
-    def parse(cls, name: str) -> PopulationSpec:
-        """The population ``name`` declares (a replicate must be ≥ 1, else the name is an
-        ordinary one)."""
-        if (m := _SWAP.match(name)) and int(m.group(1)) >= 1:
-            return cls.swap(int(m.group(1)), m.group(2))
-        if (m := _SIZED.match(name)) and int(m.group(2)) >= 1:
-            return cls.sized(m.group(1), int(m.group(2)))
-        if m := _HALF.match(name):
-            return cls.half(m.group(1), m.group(2))
-        return cls(name)
-
     def columns(self) -> dict[str, object]:
         """:data:`popnavshift.tables.POPULATION_COLUMNS` of this population."""
         return {"population_role": self.role, "null_replicate": self.replicate}
@@ -123,3 +109,20 @@ NULL_KINDS: dict[str, NullKind] = {
 def null_kind(spec: PopulationSpec) -> str:
     """The name of the null design kind the null population ``spec`` belongs to."""
     return next(name for name, kind in NULL_KINDS.items() if kind.role == spec.role)
+
+
+def index_of(specs: Iterable[PopulationSpec]) -> dict[str, PopulationSpec]:
+    """Specs by name; a name two different specs would share is an error (a condition
+    registered under a name a null replicate also writes)."""
+    out: dict[str, PopulationSpec] = {}
+    for spec in specs:
+        if out.setdefault(spec.name, spec) != spec:
+            raise ValueError(f"population name {spec.name!r} is both {out[spec.name]} and "
+                             f"{spec}: rename the condition")
+    return out
+
+
+def spec_of(specs: Mapping[str, PopulationSpec], name: str) -> PopulationSpec:
+    """The spec of population ``name`` in a study's index; a name it does not hold (a
+    condition of a table read without its study) is an observed condition."""
+    return specs.get(name) or PopulationSpec(name)

@@ -28,27 +28,24 @@ these names.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 import pandas as pd
 
 from ..hashing import stable_seed
-from .identity import NULL_KINDS, PopulationSpec
+from .identity import NULL_KINDS, PopulationSpec, spec_of
 
 
-def population_columns(name: str) -> dict[str, object]:
-    """The runs and pedestrians tables' :data:`popnavshift.tables.POPULATION_COLUMNS` of
-    population ``name``: its role (observed, swap_null, sized_null, half) and null
-    replicate (0 unless a null), written to the tables so that no reader parses names."""
-    return PopulationSpec.parse(name).columns()
-
-
-def with_population_columns(table: pd.DataFrame) -> pd.DataFrame:
-    """``table`` with the population columns filled from its ``population`` where they are
-    absent (rows stored before the columns existed are carried, not re-run)."""
+def with_population_columns(table: pd.DataFrame,
+                            specs: Mapping[str, PopulationSpec]) -> pd.DataFrame:
+    """``table`` with the population columns (:meth:`.identity.PopulationSpec.columns`)
+    filled where they are absent, from the study's index ``specs`` (rows stored before the
+    columns existed are carried, not re-run)."""
     if "population" not in table.columns or (
             "population_role" in table.columns and table["population_role"].notna().all()):
         return table
-    cols = {p: population_columns(str(p)) for p in table["population"].unique()}
+    cols = {p: spec_of(specs, str(p)).columns() for p in table["population"].unique()}
     out = table.copy()
     for column in ("population_role", "null_replicate"):
         derived = out["population"].map({p: c[column] for p, c in cols.items()})
@@ -84,9 +81,10 @@ def sized_subset(source_ids: list[str], size: int, of: str, replicate: int,
     return sorted(ids[rng.choice(len(ids), size=take, replace=False)].tolist())
 
 
-def null_populations(kind: str, replicates: int, populations: tuple[str, ...]) -> tuple[str, ...]:
-    """The population names of a null design: replicates 1 … ``replicates`` of its kind
+def null_populations(kind: str, replicates: int,
+                     populations: tuple[str, ...]) -> tuple[PopulationSpec, ...]:
+    """The populations of a null design: replicates 1 … ``replicates`` of its kind
     (:data:`.identity.NULL_KINDS`: swap permutations, both arms; size-matched subsets of
     each of ``populations`` but ``mixed``) standing in for ``populations``."""
-    return tuple(spec.name for k in range(1, replicates + 1)
+    return tuple(spec for k in range(1, replicates + 1)
                  for spec in NULL_KINDS[kind].replicate(k, populations))

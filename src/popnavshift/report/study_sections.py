@@ -14,7 +14,7 @@ import pandas as pd
 from ..analysis.study import Analysis
 from ..engine.folder import StudyFolder
 from ..populations.build import population_order
-from ..populations.identity import NULL_KINDS, PopulationSpec
+from ..populations.identity import NULL_KINDS, PopulationSpec, spec_of
 from .blocks import Cell, Section, figure, fmt, para, pct, table
 from .figures import controller_label, pop_label
 
@@ -26,7 +26,7 @@ def populations_section(study: StudyFolder, analysed: list[str], figs: dict[str,
     if pops is not None:
         a = pops[pops["mapping"] == "A"] if "mapping" in pops else pops
         n = a.groupby("population")["persona_id"].nunique()
-        specs = {p: PopulationSpec.parse(p) for p in n.index}
+        specs = {p: spec_of(study.population_specs, p) for p in n.index}
         order = population_order([p for p in n.index if not specs[p].is_null])
         used = set(analysed)
         rows: list[list[Any]] = [[pop_label(p), int(n[p]), "yes" if p in used else "no"]
