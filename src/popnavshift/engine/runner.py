@@ -34,7 +34,7 @@ from .plan import count_runs, plan_study
 from .stages import STAGES, Stage, batch_inputs, stage_stamps
 from .store import RunStore, read_manifest, read_stamps, readable_parquet
 from .study import Study
-from .validate import validate_study
+from .validate import profile_mappings, validate_study
 from .worker import Context
 
 
@@ -71,7 +71,7 @@ def population_settings(study: Study) -> PopulationSettings:
         respondent_options=dict(study.respondent.options),
         samples=study.respondent.samples,
         matched_n=study.matched_n,
-        mappings=tuple(dict.fromkeys(("A", *study.mappings))),
+        mappings=profile_mappings(study),
         respondent2=None if second is None else second.name,
         respondent2_options={} if second is None else dict(second.options),
         samples2=1 if second is None else second.samples,
