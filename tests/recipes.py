@@ -36,7 +36,18 @@ def package_with(tmp: Path, edits: Edits) -> Path:
             else:
                 text += new
         path.write_text(text, encoding="utf-8")
+    with_numba_caches(root)
     return root
+
+
+def with_numba_caches(root: Path) -> None:
+    """Seed the copy under ``root`` with the source tree's numba caches, so that its study
+    does not compile the simulator's kernels again (~30 s): numba checks each kernel's
+    source file stamp, which the copy keeps, so a module a recipe edits is compiled anew."""
+    for cached in SRC.rglob("__pycache__/*.nb[ic]"):
+        target = root / cached.relative_to(SRC)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(cached, target)
 
 
 def run_with(root: Path, code: str, cwd: Path | None = None) -> str:

@@ -9,7 +9,6 @@ from __future__ import annotations
 import inspect
 import json
 import re
-import shutil
 from pathlib import Path
 from typing import get_args
 
@@ -18,7 +17,7 @@ import pytest
 
 from popnavshift.engine.study import NullDesign, load_study
 from popnavshift.populations.identity import NULL_KINDS
-from recipes import SRC, package_with, run_with
+from recipes import package_with, run_with
 
 ARCHITECTURE = Path(__file__).resolve().parents[1] / "docs" / "architecture.md"
 PAIR = ("high_caution", "low_robot_trust")
@@ -119,16 +118,6 @@ def relabel_name(k: int, arm: str) -> str:
     return f"{PAIR[0]}_vs_{PAIR[1]}_relabel{k}_{arm}"
 
 
-def with_numba_caches(root: Path) -> None:
-    """Seed the copy under ``root`` with the source tree's numba caches, so that its study
-    does not compile the simulator's kernels again (numba checks each kernel's source file
-    stamp, kept by the copy: a module a recipe edits is compiled anew)."""
-    for cached in SRC.rglob("__pycache__/*.nb[ic]"):
-        target = root / cached.relative_to(SRC)
-        target.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copy2(cached, target)
-
-
 def paper_design() -> dict:
     """The paper study's configuration hash and every part's planned populations."""
     paper = load_study("paper")
@@ -160,7 +149,6 @@ def null_study(tmp_path_factory):
     assert not set(NULL_RECIPE) & set(VERDICT_RECIPE)
     tmp = tmp_path_factory.mktemp("recipe_null")
     root = package_with(tmp, {**NULL_RECIPE, **VERDICT_RECIPE})
-    with_numba_caches(root)
     folder = tmp / "study"
     parts = {"main": {"populations": list(PAIR), "controllers": ["reactive", "early_yield"],
                       "episodes": EPISODES},

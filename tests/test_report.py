@@ -356,3 +356,7 @@ def test_an_llm_respondent_is_named_with_the_endpoint_the_manifest_keeps():
                                "endpoint": "http://127.0.0.1:8080/v1"}}
     kind, text = respondent_note(manifest)
     assert kind == "p" and "smollm2" in text and "at http://127.0.0.1:8080/v1" in text
+    plugin = {"respondent": {"respondent": "steady", "model": "steady-v1"}}
+    kind, text = respondent_note(plugin)  # no endpoint: not called a language model
+    assert kind == "p" and "steady respondent (steady-v1)" in text
+    assert "language model" not in text

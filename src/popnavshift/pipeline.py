@@ -27,13 +27,7 @@ from .personas.variants import MATCHED_N_DEFAULT, matched_ids
 from .populations.build import POPULATIONS, SPLIT_HALVES, attach_profiles, membership
 from .populations.figures import write_profile_figures
 from .populations.identity import MATCHED_PAIR, PopulationSpec
-from .populations.perturb import (
-    BLOCKS,
-    label,
-    reassign_profiles,
-    shuffle_columns,
-    single_block_responses,
-)
+from .populations.perturb import STRUCTURE, Sources, label
 from .profiles.mappings import build_profiles
 from .progress import progress_bar
 from .responses.collect import collect_responses
@@ -199,11 +193,10 @@ def run_profiles(folder: Path, s: PopulationSettings) -> pd.DataFrame:
     personas = read_table(folder / "personas.parquet", "personas")
     responses = read_responses(folder / "responses.parquet")
     sets = [build_profiles(responses, personas, m) for m in s.mappings]
-    if s.structure:
-        sets.append(reassign_profiles(sets[s.mappings.index("A")], s.seed))
-        for block in BLOCKS:
-            one = build_profiles(single_block_responses(responses, block), personas, "A")
-            sets.append(one.assign(mapping=label("block", block)))
+    if s.structure:  # the structure sets built from Mapping A's profiles
+        sources = Sources(sets[s.mappings.index("A")], responses, personas, s.seed)
+        sets += [kind.profiles(sources, arg) for kind in STRUCTURE.values()
+                 if kind.profiles is not None for arg in kind.args]
     if s.respondent2 is not None:
         alt = read_responses(folder / "responses_alt.parquet")
         sets.append(build_profiles(alt, personas, "A").assign(mapping=s.respondent2_label))
@@ -234,9 +227,10 @@ def run_populations(folder: Path, s: PopulationSettings) -> pd.DataFrame:
             pair = these_members["population"].isin(MATCHED_PAIR)
             these_members = these_members[pair & these_members["persona_id"].isin(have)]
         tables.append(attach_profiles(these_members, these))
-    if s.structure:
+    if s.structure:  # the structure sets built from Mapping A's populations
         base_a = next(t for t in tables if t["mapping"].iloc[0] == "A")
-        tables.append(shuffle_columns(base_a, s.seed))
+        tables += [kind.populations(base_a, arg, s.seed) for kind in STRUCTURE.values()
+                   if kind.populations is not None for arg in kind.args]
     table = pd.concat(tables, ignore_index=True)
     write_parquet(table, folder / "populations.parquet")
     write_profile_figures(table[table["mapping"] == "A"], folder / "figures")

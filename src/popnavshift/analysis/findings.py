@@ -143,7 +143,8 @@ class Claim(NamedTuple):
     key: str
     statement: str
     #: inputs it reads: ``pairs``, ``matched``, ``delays``, ``controllers`` (the paper's
-    #: three), ``width:<label>`` (a width series, see :func:`paper_findings`)
+    #: three), ``controller:<name>`` (one controller), ``width:<label>`` (a width series,
+    #: see :func:`paper_findings`)
     needs: frozenset[str]
     #: what the report says is not checked when the inputs are absent
     missing: str
@@ -275,7 +276,8 @@ def available_findings(table1: pd.DataFrame, outcomes: pd.DataFrame,
     series."""
     have = {name for name, ok in (("pairs", pairs), ("matched", matched), ("delays", delays),
                                   ("controllers", set(PAPER_CONTROLLERS) <= set(outcomes.index)))
-            if ok} | {f"width:{label}" for label in widths}
+            if ok} | {f"width:{label}" for label in widths} | {
+        f"controller:{c}" for c in outcomes.index}
     inputs = Inputs(table1, outcomes, widths, change)
     found = []
     for claim in CLAIMS:

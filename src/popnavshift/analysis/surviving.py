@@ -35,7 +35,7 @@ METRICS_NEEDED = ("mean_delay", "worst_decile", "success_share", "timeout_share"
 def _inputs_present(cells: pd.DataFrame) -> set[str]:
     """The :attr:`.findings.Claim.needs` the cell table can serve an interval for."""
     ctrls, pops = set(cells["controller"]), set(cells["population"])
-    have = {"pairs", "delays"}
+    have = {"pairs", "delays", *(f"controller:{c}" for c in ctrls)}
     if set(PAPER_CONTROLLERS) <= ctrls:
         have.add("controllers")
     if set(MATCHED_PAIR) <= pops:

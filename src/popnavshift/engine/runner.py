@@ -34,7 +34,7 @@ from .plan import count_runs, plan_study
 from .stages import STAGES, Stage, batch_inputs, stage_stamps
 from .store import RunStore, read_manifest, read_stamps, readable_parquet
 from .study import Study
-from .validate import validate_study
+from .validate import profile_mappings, validate_study
 from .worker import Context
 
 
@@ -64,7 +64,7 @@ def population_settings(study: Study) -> PopulationSettings:
         respondent=study.respondent,
         respondent2=study.respondent2,
         matched_n=study.matched_n,
-        mappings=tuple(dict.fromkeys(("A", *study.mappings))),
+        mappings=profile_mappings(study),
         structure=any(ProfileSet.parse(m).is_structure for m in used),
         nulls=nulls,
         null_mappings=tuple(sorted({m for part in null_parts for m in part.mappings})),

@@ -216,6 +216,8 @@ class Study(Strict):
     personas: PersonaSource = PersonaSource()
     respondent: RespondentSpec = RespondentSpec()
     matched_n: Count = 202
+    #: mappings whose profiles are built besides A and those the parts name
+    #: (:func:`popnavshift.engine.validate.profile_mappings`)
     mappings: Annotated[tuple[str, ...], Unique] = ("A", "B", "C", "D")
     #: a second respondent for the respondent-robustness part (matched pair only)
     respondent2: RespondentSpec | None = None

@@ -20,7 +20,7 @@ from collections.abc import Iterable, Sequence
 from typing import Any
 
 from ..errors import ConfigError, UnknownNameError
-from ..populations.perturb import BLOCKS, ProfileSet
+from ..populations.perturb import STRUCTURE, ProfileSet
 from ..profiles.mappings import MAPPINGS
 from ..responses.respondent import RESPONDENTS
 from ..sim.backends import BACKENDS
@@ -111,14 +111,20 @@ def _check_names(study: Study) -> None:
         _check_respondent(study.respondent2, f"{study.where}: respondent2")
 
 
+def profile_mappings(study: Study) -> tuple[str, ...]:
+    """The mappings whose profiles the study's population stage builds: A, the study's
+    ``mappings`` (default A–D), then any other registered mapping a part names."""
+    named = [m for part in study.parts.values() for m in part.mappings if m in MAPPINGS]
+    return tuple(dict.fromkeys(("A", *study.mappings, *named)))
+
+
 def known_mappings(study: Study) -> list[str]:
     """Profile-set labels the study's population stage can build."""
     for mapping in study.mappings:
         if mapping not in MAPPINGS:
             raise UnknownNameError("mapping (study mappings)", mapping, MAPPINGS.names())
-    sets = [ProfileSet(m) for m in ("A", *study.mappings)]
-    sets += [ProfileSet("A", kind) for kind in ("reassign", "shuffle")]
-    sets += [ProfileSet("A", "block", block) for block in BLOCKS]
+    sets = [ProfileSet(m) for m in profile_mappings(study)]
+    sets += [ProfileSet("A", kind, arg) for kind, s in STRUCTURE.items() for arg in s.args]
     if study.respondent2 is not None:
         sets.append(ProfileSet("A", "second_respondent", study.respondent2.name))
     return sorted({s.label for s in sets})

@@ -14,17 +14,24 @@ once into data; the runs and pedestrians tables carry it as columns. Labels:
   varies across personas and every other answer is set to its population-wide typical
   value (median level; most common action per probe);
 * ``A~<respondent>-2``: the matched pair re-profiled from a second respondent.
+
+The structure perturbations (reassign, shuffle, block) are declared once in
+:data:`STRUCTURE`: their arguments and how their sets are built. The labels, the study
+check and the population pipeline iterate it, so a new kind is one entry and its builder.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
 
 from ..errors import ConfigError
 from ..hashing import stable_seed
+from ..profiles.mappings import build_profiles
 from ..tables import (
     ACTION_COLUMNS,
     PARAMS,
@@ -41,11 +48,30 @@ BLOCKS: dict[str, tuple[tuple[str, ...], bool]] = {
     "trust": (("q_trust",), False),
 }
 
+NO_ARGUMENT: tuple[str, ...] = ("",)
 
-#: the ``perturbation`` of a profile set: how it departs from its base mapping
-PERTURBATIONS: tuple[str, ...] = ("none", "reassign", "shuffle", "block", "second_respondent")
-#: perturbations of the structure study (built only when a study asks for one)
-STRUCTURE_PERTURBATIONS: tuple[str, ...] = ("reassign", "shuffle", "block")
+
+class Sources(NamedTuple):
+    """What a structure set built at the profiles stage is made from: Mapping A's
+    profiles, the responses (one per persona and variant), the personas, the seed."""
+
+    profiles: pd.DataFrame
+    responses: pd.DataFrame
+    personas: pd.DataFrame
+    seed: int
+
+
+class Structure(NamedTuple):
+    """How the profile sets of one structure perturbation of Mapping A are built: one
+    set per argument in ``args`` (:data:`NO_ARGUMENT`: one set, no argument), either at
+    the profiles stage (``profiles(sources, arg)``: the set's ``profiles`` rows) or at
+    the populations stage (``populations(populations_a, arg, seed)``: the set's
+    ``populations`` rows from Mapping A's). Each returns rows labelled with the set's
+    label (:func:`label`)."""
+
+    args: tuple[str, ...] = NO_ARGUMENT
+    profiles: Callable[[Sources, str], pd.DataFrame] | None = None
+    populations: Callable[[pd.DataFrame, str, int], pd.DataFrame] | None = None
 
 
 @dataclass(frozen=True)
@@ -67,46 +93,51 @@ class ProfileSet:
         if self.perturbation not in PERTURBATIONS:
             raise ConfigError(f"profile set perturbation {self.perturbation!r}: one of "
                               f"{', '.join(PERTURBATIONS)}")
-        if bool(self.arg) != (self.perturbation in ("block", "second_respondent")):
+        if bool(self.arg) != _takes_argument(self.perturbation):
+            takes = [k for k in PERTURBATIONS if _takes_argument(k)]
             raise ConfigError(f"profile set {self.perturbation!r}: argument {self.arg!r} "
-                              "(blocks and second respondents take one, nothing else does)")
+                              f"({' and '.join(takes)} take one, nothing else does)")
 
     @classmethod
     def parse(cls, label: str) -> ProfileSet:
-        """The set a label names: ``<base>``, ``<base>~reassign``, ``<base>~shuffle``,
-        ``<base>~block-<block>`` or ``<base>~<respondent>-2``."""
+        """The set a label names: ``<base>``, ``<base>~<kind>`` or ``<base>~<kind>-<arg>``
+        for a kind of :data:`STRUCTURE` (``A~shuffle``, ``A~block-caution``), or
+        ``<base>~<respondent>-2``."""
         base, sep, rest = label.partition("~")
         if not sep:
             return cls(base)
-        if rest in ("reassign", "shuffle"):
+        if rest in STRUCTURE and STRUCTURE[rest].args == NO_ARGUMENT:
             return cls(base, rest)
-        kind, _, block = rest.partition("-")
-        if kind == "block" and block in BLOCKS:
-            return cls(base, "block", block)
+        kind, _, arg = rest.partition("-")
+        if kind in STRUCTURE and arg in STRUCTURE[kind].args:
+            return cls(base, kind, arg)
         respondent, _, two = rest.rpartition("-")
         if respondent and two == "2":
             return cls(base, "second_respondent", respondent)
-        raise ConfigError(f"profile set {label!r}: not <mapping>~reassign, ~shuffle, "
-                          f"~block-<{'|'.join(BLOCKS)}> or ~<respondent>-2")
+        kinds = [f"~{k}" if s.args == NO_ARGUMENT else f"~{k}-<{'|'.join(s.args)}>"
+                 for k, s in STRUCTURE.items()]
+        raise ConfigError(f"profile set {label!r}: not <mapping>{', '.join(kinds)} "
+                          "or ~<respondent>-2")
 
     @property
     def label(self) -> str:
         """The study file's name of the set (the ``mapping`` column)."""
         if self.perturbation == "none":
             return self.base
-        if self.perturbation == "block":
-            return f"{self.base}~block-{self.arg}"
         if self.perturbation == "second_respondent":
             return f"{self.base}~{self.arg}-2"
-        return f"{self.base}~{self.perturbation}"
+        return f"{self.base}~{self.profile_set}"
 
     @property
     def profile_set(self) -> str:
-        """The ``profile_set`` column: ``original``, ``reassign``, ``shuffle``,
-        ``block-<block>`` or ``second_respondent``."""
+        """The ``profile_set`` column: ``original``, ``<kind>`` or ``<kind>-<arg>`` for a
+        structure kind (``reassign``, ``shuffle``, ``block-<block>``), or
+        ``second_respondent``."""
         if self.perturbation == "none":
             return "original"
-        return f"block-{self.arg}" if self.perturbation == "block" else self.perturbation
+        if self.arg and self.perturbation != "second_respondent":
+            return f"{self.perturbation}-{self.arg}"
+        return self.perturbation
 
     @property
     def is_structure(self) -> bool:
@@ -172,6 +203,12 @@ def single_block_responses(responses: pd.DataFrame, block: str) -> pd.DataFrame:
     return out
 
 
+def block_profiles(sources: Sources, block: str) -> pd.DataFrame:
+    """Mapping A's profiles of responses in which only ``block`` varies."""
+    one = build_profiles(single_block_responses(sources.responses, block), sources.personas, "A")
+    return one.assign(mapping=label("block", block))
+
+
 def with_profile_set_columns(table: pd.DataFrame) -> pd.DataFrame:
     """``table`` with :data:`PROFILE_SET_COLUMNS` filled from its ``mapping`` labels where
     they are absent: rows stored before a column existed are carried, not re-run."""
@@ -185,3 +222,24 @@ def with_profile_set_columns(table: pd.DataFrame) -> pd.DataFrame:
         derived = out["mapping"].map({m: c[column] for m, c in sets.items()})
         out[column] = out[column].fillna(derived) if column in out else derived
     return out
+
+
+#: The structure perturbations of Mapping A (paper §V-D), in the order their sets are
+#: built: what :class:`ProfileSet` parses, :func:`popnavshift.engine.validate.known_mappings`
+#: accepts and the population pipeline builds (every set of every kind, when a study part
+#: names any). A new kind is one entry and its builder.
+STRUCTURE: dict[str, Structure] = {
+    "reassign": Structure(profiles=lambda s, _: reassign_profiles(s.profiles, s.seed)),
+    "shuffle": Structure(populations=lambda pops, _, seed: shuffle_columns(pops, seed)),
+    "block": Structure(tuple(BLOCKS), profiles=block_profiles),
+}
+#: perturbations of the structure study (built only when a study asks for one)
+STRUCTURE_PERTURBATIONS: tuple[str, ...] = tuple(STRUCTURE)
+#: the ``perturbation`` of a profile set: how it departs from its base mapping
+PERTURBATIONS: tuple[str, ...] = ("none", *STRUCTURE, "second_respondent")
+
+
+def _takes_argument(perturbation: str) -> bool:
+    """Whether a set of ``perturbation`` names an argument (a block, a respondent)."""
+    return (perturbation == "second_respondent"
+            or STRUCTURE.get(perturbation, Structure()).args != NO_ARGUMENT)
