@@ -60,8 +60,10 @@ def respondent_note(manifest: dict[str, Any]) -> tuple[str, str]:
                         f"({model}): deterministic offline rules, NOT a language model. The "
                         "paper's personas answered through an LLM, so this run tests the "
                         "pipeline and the simulated populations, not LLM behaviour.")
-    where = f" at {r['endpoint']}" if r.get("endpoint") else ""
-    return "p", f"Probe responses come from the language model {model} ({name} respondent{where})."
+    if not r.get("endpoint"):  # a plug-in that calls no server: not known to be an LLM
+        return "p", f"Probe responses come from the {name} respondent ({model})."
+    return "p", (f"Probe responses come from the language model {model} ({name} respondent "
+                 f"at {r['endpoint']}).")
 
 
 @dataclass(frozen=True)
