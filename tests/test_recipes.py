@@ -229,3 +229,28 @@ def test_the_recipe_for_a_paper_figure(recipe_study):
     assert statement in set(tables(recipe_study, "findings")["statement"])
     assert statement in section(recipe_study, "summary")
     assert "about 4×" not in section(recipe_study, "summary")
+
+
+def test_the_stored_study_keeps_its_parts_in_order(tmp_path):
+    """The manifest's JSON sorts its keys; the part order it stores keeps the main part
+    of a study that names none (its first), so a renamed main part stays the main one, and
+    a manifest of an earlier version of the study is written again by the next run."""
+    import json
+
+    from popnavshift.engine.folder import _study
+    from popnavshift.engine.runner import _manifest_describes
+    from popnavshift.engine.study import study_from_dict
+
+    study = study_from_dict({"name": "t", "parts": {"zgrid": {}, "a_null": {
+        "null_design": {"kind": "swap", "replicates": 2}}}})
+    stored = json.loads(json.dumps(study.model_dump(mode="json"), sort_keys=True))
+    assert list(stored["parts"]) == ["a_null", "zgrid"]
+    manifest = {"study_config": stored, "part_order": list(study.parts)}
+    assert _study(manifest).role("zgrid") == "main"
+    assert _study({"study_config": stored}).role("zgrid") != "main"  # why it is stored
+    (tmp_path / "manifest.json").write_text(json.dumps(
+        {**manifest, "config_hash": study.config_hash()}))
+    assert _manifest_describes(tmp_path, study)
+    renamed = study_from_dict({"name": "t", "parts": {"grid": {}, "a_null": {
+        "null_design": {"kind": "swap", "replicates": 2}}}})
+    assert not _manifest_describes(tmp_path, renamed)

@@ -55,8 +55,15 @@ class StudyFolder:
 
 
 def _study(manifest: dict[str, Any]) -> Study | None:
+    """The study the manifest stored, its parts in the study file's order (``part_order``;
+    the stored JSON's keys are sorted, and a study that names no main part takes its
+    first)."""
     cfg = manifest.get("study_config")
-    return study_from_dict(cfg, "manifest study_config") if cfg and cfg.get("parts") else None
+    if not (cfg and cfg.get("parts")):
+        return None
+    order = [n for n in manifest.get("part_order", ()) if n in cfg["parts"]]
+    parts = {n: cfg["parts"][n] for n in [*order, *sorted(set(cfg["parts"]) - set(order))]}
+    return study_from_dict({**cfg, "parts": parts}, "manifest study_config")
 
 
 def _read_json(path: Path) -> dict[str, Any]:

@@ -155,7 +155,7 @@ def run_study(
     plan = plan_batches(runs, store, batch_inputs(read_stamps(folder)))
     report.planned = len(runs)
     report.reused = plan.reused
-    complete = _manifest_intact(folder) and not plan.batches
+    complete = _manifest_describes(folder, study) and not plan.batches
     if not plan.todo and not report.stages_run and complete and _holds_exactly(folder, runs):
         report.seconds = time.perf_counter() - started
         return report
@@ -181,13 +181,17 @@ def run_study(
     return report
 
 
-def _manifest_intact(folder: Path) -> bool:
-    """Whether the manifest reads back; a damaged one is written again (not reported as
-    'nothing to do' while `report` refuses it)."""
+def _manifest_describes(folder: Path, study: Study) -> bool:
+    """Whether the manifest reads back and describes ``study`` as it is now. A damaged one
+    is written again (not reported as 'nothing to do' while `report` refuses it), and so is
+    one of an earlier version of the study whose runs are all still valid (a part renamed,
+    a role declared): the analysis reads the study from it, and the runs' ``part`` column
+    is compacted again."""
     try:
-        return read_manifest(folder) is not None
+        manifest = read_manifest(folder)
     except InputError:
         return False
+    return manifest is not None and manifest.get("config_hash") == study.config_hash()
 
 
 def _holds_exactly(folder: Path, runs: list) -> bool:
@@ -225,6 +229,9 @@ def write_manifest(
             "study": study.name,
             "config_hash": study.config_hash(),
             "study_config": study.model_dump(mode="json"),
+            # the JSON's keys are sorted; the parts' order decides the main part of a
+            # study that names none (Study.role)
+            "part_order": list(study.parts),
             "versions": {
                 "popnavshift": __version__,
                 "navground": _navground_version(),
