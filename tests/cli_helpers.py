@@ -1,13 +1,12 @@
 """The command line as the CLI tests meet it: ``popnavshift`` in a real process, the
-one-line error check, and a tiny study file (one episode) with its finished folder."""
+one-line error check, and a tiny study file (one episode); its finished folder is the
+``finished`` fixture of conftest.py."""
 
 from __future__ import annotations
 
 import subprocess
 import sys
 from pathlib import Path
-
-import pytest
 
 
 def cli(*args, cwd=None):
@@ -50,12 +49,3 @@ def tiny_study(folder: Path, *, source="synthetic", n=60, respondent="", control
     path.write_text(TINY.format(source=source, n=n, respondent=respondent, controller=controller,
                                 backend=backend, mapping=mapping, episodes=episodes))
     return path
-
-
-@pytest.fixture(scope="module")
-def finished(tmp_path_factory) -> Path:
-    """A finished tiny study (2 runs); tests copy it before damaging it."""
-    root = tmp_path_factory.mktemp("finished")
-    proc = cli("run", str(tiny_study(root)), "--out", str(root / "s"), "--no-report", "-w", "1")
-    assert proc.returncode == 0, proc.stderr
-    return root / "s"

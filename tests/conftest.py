@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
 
+from cli_helpers import cli, tiny_study
 from popnavshift.personas.fields import PERSONA_FIELDS, vocabulary
 
 
@@ -26,3 +29,22 @@ def random_personas():
         return df
 
     return make
+
+
+@pytest.fixture(scope="session")
+def finished(tmp_path_factory) -> Path:
+    """A finished tiny study (2 runs), made once for every CLI module; tests copy it before
+    damaging it."""
+    root = tmp_path_factory.mktemp("finished")
+    proc = cli("run", str(tiny_study(root)), "--out", str(root / "s"), "--no-report", "-w", "1")
+    assert proc.returncode == 0, proc.stderr
+    return root / "s"
+
+
+@pytest.fixture(scope="session")
+def reported_study(tmp_path_factory) -> Path:
+    """The report tests' small study (report_study.py), run and reported once for the
+    modules that read it; tests copy it before altering it."""
+    from report_study import run_and_report
+
+    return run_and_report(tmp_path_factory.mktemp("reported"))

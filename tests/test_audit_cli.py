@@ -1,5 +1,6 @@
 """The respondent audit as a user meets it: `popnavshift audit` on a study folder (real
-processes, exit codes, one-line errors) and the report's banner and flag."""
+processes, forked by :mod:`forked_cli`; exit codes, one-line errors) and the report's
+banner and flag."""
 
 from __future__ import annotations
 
@@ -8,7 +9,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from cli_helpers import assert_one_line_error, cli
+from cli_helpers import assert_one_line_error
+from forked_cli import run_cli
 from popnavshift.analysis.audit_verdict import MIN_PERMUTATIONS, audit_tables
 from popnavshift.analysis.study import Analysis
 from popnavshift.engine.folder import StudyFolder
@@ -43,7 +45,7 @@ def blind_folder(tmp_path_factory) -> Path:
 
 
 def test_audit_prints_the_verdict_of_the_rule_respondent(rule_folder):
-    proc = cli("audit", str(rule_folder), "--strict")
+    proc = run_cli("audit", str(rule_folder), "--strict")
     assert proc.returncode == 0, proc.stderr
     last = proc.stderr.strip().splitlines()[-1]
     assert last.startswith("first respondent rule") and last.endswith("usable"), last
@@ -51,10 +53,10 @@ def test_audit_prints_the_verdict_of_the_rule_respondent(rule_folder):
 
 
 def test_strict_audit_of_a_persona_blind_respondent_exits_1(blind_folder):
-    proc = cli("audit", str(blind_folder), "--strict")
+    proc = run_cli("audit", str(blind_folder), "--strict")
     assert proc.returncode == 1, proc.stderr
     assert "not persona-sensitive" in proc.stderr and "artifacts" in proc.stderr
-    assert cli("audit", str(blind_folder)).returncode == 0  # without --strict: a report
+    assert run_cli("audit", str(blind_folder)).returncode == 0  # without --strict: a report
 
 
 @pytest.mark.parametrize("args, needles", [
@@ -65,11 +67,11 @@ def test_strict_audit_of_a_persona_blind_respondent_exits_1(blind_folder):
 ])
 def test_audit_mistakes_are_one_red_line_and_exit_2(tmp_path, rule_folder, args, needles):
     args = [a.format(tmp=tmp_path, rule=rule_folder) for a in args]
-    assert_one_line_error(cli(*args), *needles)
+    assert_one_line_error(run_cli(*args), *needles)
 
 
 def test_help_states_the_fewest_permutations():
-    proc = cli("audit", "--help")
+    proc = run_cli("audit", "--help")
     assert proc.returncode == 0 and str(MIN_PERMUTATIONS) in proc.stdout
     assert "not persona-sensitive" in proc.stdout
 

@@ -1,4 +1,7 @@
-"""The CLI as a user meets it: real processes, exit codes, one-line errors."""
+"""The CLI as a user meets it: real processes, exit codes, one-line errors. A command is
+spawned where the process itself is under test (the end-to-end study, ``--help``, a user's
+PYTHONPATH, the terminal width, a server thread in the test process) and forked
+(:mod:`forked_cli`: no interpreter start-up) elsewhere."""
 
 from __future__ import annotations
 
@@ -9,6 +12,7 @@ import pandas as pd
 import pytest
 
 from cli_helpers import assert_one_line_error, cli
+from forked_cli import run_cli
 from popnavshift.dictionary import STUDY_TABLES
 from popnavshift.tables import SPECS, check_table
 
@@ -51,12 +55,12 @@ def test_quick_study_end_to_end(tmp_path):
 
 def test_stages_one_by_one_and_personas_to_a_file(tmp_path):
     target = tmp_path / "d" / "personas.parquet"
-    assert cli("personas", "--n", "300", "--seed", "1", "--out", str(target)).returncode == 0
+    assert run_cli("personas", "--n", "300", "--seed", "1", "--out", str(target)).returncode == 0
     assert len(pd.read_parquet(target)) == 300 and target.with_suffix(".json").exists()
     folder = str(target.parent)
-    assert cli("probe", "--out", folder, "--matched-n", "50").returncode == 0
-    assert cli("profiles", "--out", folder, "--mapping", "A").returncode == 0
-    proc = cli("populations", "--out", folder, "--matched-n", "50")
+    assert run_cli("probe", "--out", folder, "--matched-n", "50").returncode == 0
+    assert run_cli("profiles", "--out", folder, "--mapping", "A").returncode == 0
+    proc = run_cli("populations", "--out", folder, "--matched-n", "50")
     assert proc.returncode == 0, proc.stderr
     assert set(pd.read_parquet(target.parent / "profiles.parquet").mapping) == {"A"}
 
@@ -72,8 +76,8 @@ def test_stages_one_by_one_and_personas_to_a_file(tmp_path):
 )
 def test_user_errors_are_one_red_line_and_exit_2(tmp_path, args, needles):
     if args[0] == "probe":
-        assert cli("personas", "--out", str(tmp_path)).returncode == 0
-    proc = cli(*args, "--out", str(tmp_path / "x" if args[0] == "populations" else tmp_path))
+        assert run_cli("personas", "--out", str(tmp_path)).returncode == 0
+    proc = run_cli(*args, "--out", str(tmp_path / "x" if args[0] == "populations" else tmp_path))
     assert_one_line_error(proc, *needles)
 
 
@@ -84,7 +88,7 @@ def test_bad_persona_value_names_file_row_and_field(tmp_path):
     df.loc[3, "trust_level"] = "Paranoid"
     path = tmp_path / "p.csv"
     df.to_csv(path, index=False)
-    proc = cli("personas", "--source", str(path), "--n", "10", "--out", str(tmp_path))
+    proc = run_cli("personas", "--source", str(path), "--n", "10", "--out", str(tmp_path))
     assert_one_line_error(proc, "p.csv", "trust_level", "Paranoid")
 
 
@@ -93,13 +97,13 @@ def test_help_teaches_every_command():
     assert proc.returncode == 0
     for command in ("personas", "probe", "profiles", "populations", "run"):
         assert command in proc.stdout
-        assert cli(command, "--help").returncode == 0
+        assert run_cli(command, "--help").returncode == 0
 
 
 def test_probe_with_an_openai_compatible_server_caches_every_record(tmp_path):
     from llm_server import serve, valid_text
 
-    assert cli("personas", "--n", "30", "--out", str(tmp_path)).returncode == 0
+    assert run_cli("personas", "--n", "30", "--out", str(tmp_path)).returncode == 0
     with serve() as server:
         from llm_server import Reply
 
@@ -133,8 +137,8 @@ def test_probe_with_an_openai_compatible_server_caches_every_record(tmp_path):
 
 def test_probe_with_a_missing_key_is_one_line(tmp_path, monkeypatch):
     monkeypatch.delenv("POPNAV_TEST_KEY", raising=False)
-    assert cli("personas", "--n", "10", "--out", str(tmp_path)).returncode == 0
-    proc = cli(
+    assert run_cli("personas", "--n", "10", "--out", str(tmp_path)).returncode == 0
+    proc = run_cli(
         "probe",
         "--respondent",
         "openai",

@@ -14,7 +14,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from cli_helpers import ONE_EPISODE, assert_one_line_error, cli, finished, tiny_study  # noqa: F401,E501  (fixture)
+from cli_helpers import ONE_EPISODE, assert_one_line_error, cli, tiny_study
 from forked_cli import run_cli
 from llm_server import Reply, serve
 
@@ -23,7 +23,7 @@ EPISODE_ID = "head_on-w1.8-d0.06-s0.6-v1"
 
 
 @pytest.fixture
-def study(finished, tmp_path) -> Path:  # noqa: F811
+def study(finished, tmp_path) -> Path:
     shutil.copytree(finished, tmp_path / "s")
     return tmp_path / "s"
 

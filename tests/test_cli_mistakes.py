@@ -1,6 +1,9 @@
 """Issue #12: every documented command works and every mistake gets one clear line.
 
-Each test is a case an adversarial user found; real processes, exit codes, stderr.
+Each test is a case an adversarial user found; real processes, exit codes, stderr. A
+command runs forked (:mod:`forked_cli`: no interpreter start-up) unless the test process
+holds something a fork would inherit (a server thread, the folder's lock) or the test is
+about the process itself (the terminal width, its workers): then it is spawned.
 """
 
 from __future__ import annotations
@@ -18,19 +21,20 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from cli_helpers import assert_one_line_error, cli, finished, tiny_study  # noqa: F401  (fixture)
+from cli_helpers import assert_one_line_error, cli, tiny_study
+from forked_cli import run_cli
 from llm_server import Reply, serve
 
 
 @pytest.fixture
-def study(finished, tmp_path) -> Path:  # noqa: F811
+def study(finished, tmp_path) -> Path:
     shutil.copytree(finished, tmp_path / "s")
     return tmp_path / "s"
 
 
-def rerun(folder: Path, *extra: str):
-    return cli("run", str(tiny_study(folder.parent)), "--out", str(folder), "--no-report",
-               "-w", "1", *extra)
+def rerun(folder: Path, *extra: str, command=run_cli):
+    return command("run", str(tiny_study(folder.parent)), "--out", str(folder), "--no-report",
+                   "-w", "1", *extra)
 
 
 # ---- 1. rich markup: user and error text is shown verbatim ----------------------------
@@ -45,7 +49,7 @@ def test_episodes_lists_the_grid():
 
 @pytest.mark.parametrize("name", ["data[v2].csv", "[/x].csv"])
 def test_bracketed_names_are_shown_verbatim(tmp_path, name):
-    proc = cli("personas", "--source", name, "--out", str(tmp_path))
+    proc = run_cli("personas", "--source", name, "--out", str(tmp_path))
     assert_one_line_error(proc, f"'{name}'")
 
 
@@ -75,7 +79,7 @@ def test_install_hints_keep_their_extras():
     ],
 )
 def test_usage_mistakes_are_one_line_and_exit_2(tmp_path, args, needle):
-    proc = cli(*args, cwd=tmp_path)
+    proc = run_cli(*args, cwd=tmp_path)
     assert_one_line_error(proc, needle)
     assert not any(tmp_path.iterdir())  # nothing was started
 
@@ -88,7 +92,7 @@ def probe_args(folder: Path, url: str, *extra: str) -> list[str]:
 
 @pytest.fixture
 def personas(tmp_path) -> Path:
-    assert cli("personas", "--n", "12", "--out", str(tmp_path)).returncode == 0
+    assert run_cli("personas", "--n", "12", "--out", str(tmp_path)).returncode == 0
     return tmp_path
 
 
@@ -184,11 +188,11 @@ def test_editing_the_persona_file_reruns_its_stages(tmp_path):
     people.to_csv(csv, index=False)
     yaml = tiny_study(tmp_path, source=str(csv), n=40)
     out = tmp_path / "s"
-    assert cli("run", str(yaml), "--out", str(out), "--no-report", "-w", "1").returncode == 0
+    assert run_cli("run", str(yaml), "--out", str(out), "--no-report", "-w", "1").returncode == 0
     before = pd.read_parquet(out / "responses.parquet")
     people.loc[people.index, "risk_tolerance"] = people["risk_tolerance"].iloc[::-1].to_numpy()
     people.to_csv(csv, index=False)  # same path, new content
-    proc = cli("run", str(yaml), "--out", str(out), "--no-report", "-w", "1")
+    proc = run_cli("run", str(yaml), "--out", str(out), "--no-report", "-w", "1")
     assert proc.returncode == 0, proc.stderr
     assert "nothing to do" not in proc.stderr
     after = pd.read_parquet(out / "responses.parquet")
@@ -216,14 +220,14 @@ def test_editing_the_persona_file_reruns_its_stages(tmp_path):
     ],
 )
 def test_plan_rejects_a_study_that_cannot_run(tmp_path, change, needles):
-    assert_one_line_error(cli("plan", str(tiny_study(tmp_path, **change))), *needles)
+    assert_one_line_error(run_cli("plan", str(tiny_study(tmp_path, **change))), *needles)
 
 
 @pytest.mark.parametrize("change", [{"episodes": "{widths: [4.0]}"}, {"controller": "reactiv"},
                                     {"backend": "orka"}, {"mapping": "E"}])
 def test_run_rejects_it_before_any_stage(tmp_path, change):
     out = tmp_path / "s"
-    proc = cli("run", str(tiny_study(tmp_path, **change)), "--out", str(out))
+    proc = run_cli("run", str(tiny_study(tmp_path, **change)), "--out", str(out))
     assert_one_line_error(proc, "did you mean" if "mapping" not in change else "mapping")
     assert not (out / "personas.parquet").exists()  # failed before any stage
 
@@ -231,7 +235,7 @@ def test_run_rejects_it_before_any_stage(tmp_path, change):
 def test_a_misspelt_respondent_option_fails_before_the_persona_stage(tmp_path):
     yaml = tiny_study(tmp_path, respondent="respondent: {name: openai, options: {modle: x}}\n")
     out = tmp_path / "s"
-    assert_one_line_error(cli("run", str(yaml), "--out", str(out)), "'modle'", "'model'")
+    assert_one_line_error(run_cli("run", str(yaml), "--out", str(out)), "'modle'", "'model'")
     assert not (out / "personas.parquet").exists()
 
 
@@ -264,7 +268,7 @@ def test_a_damaged_stage_table_is_made_again(study, table):
 def test_report_refuses_a_damaged_table_in_one_line(study, damage):
     path = study / "pedestrians.parquet"
     truncate(path) if damage == "truncate" else path.write_bytes(b"not parquet at all")
-    assert_one_line_error(cli("report", str(study)), "pedestrians.parquet", "damaged")
+    assert_one_line_error(run_cli("report", str(study)), "pedestrians.parquet", "damaged")
 
 
 def test_a_corrupt_stages_file_is_one_line(study):
@@ -283,16 +287,16 @@ def test_a_read_only_output_folder_is_one_line(tmp_path):
         target = tmp_path / "ro"
         target.mkdir()
         target.chmod(0o555)
-    assert_one_line_error(cli("run", "quick", "--out", str(target)), str(target), "writable")
-    assert_one_line_error(cli("personas", "--out", str(target / "sub")), "writable")
+    assert_one_line_error(run_cli("run", "quick", "--out", str(target)), str(target), "writable")
+    assert_one_line_error(run_cli("personas", "--out", str(target / "sub")), "writable")
 
 
 # ---- 8. one command per folder; workers die with their parent -------------------------
 def test_a_second_run_on_a_locked_folder_names_the_holder(study):
     from popnavshift.engine.lock import study_lock
 
-    with study_lock(study):
-        assert_one_line_error(rerun(study), "in use", f"pid {os.getpid()}")
+    with study_lock(study):  # spawned processes: a forked one would inherit the lock
+        assert_one_line_error(rerun(study, command=cli), "in use", f"pid {os.getpid()}")
         for stage in ("personas", "probe", "profiles", "populations"):
             assert_one_line_error(cli(stage, "--out", str(study)), "in use")
     assert rerun(study).returncode == 0  # released
@@ -356,15 +360,13 @@ def test_a_study_name_cannot_leave_the_working_folder(tmp_path, name):
     text = (work / "tiny.yaml").read_text().replace("name: tiny", f"name: '{name}'")
     (work / "tiny.yaml").unlink()
     (work / "s.yaml").write_text(text)
-    assert_one_line_error(cli("run", "s.yaml", cwd=work), "study name")
+    assert_one_line_error(run_cli("run", "s.yaml", cwd=work), "study name")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["work"]
     assert sorted(p.name for p in work.iterdir()) == ["s.yaml"]
 
 
 def test_an_unknown_executor_fails_before_any_stage(tmp_path):
     out = tmp_path / "s"
-    proc = subprocess.run([sys.executable, "-m", "popnavshift", "run", "quick", "--out",
-                           str(out), "--executor", "bogus"], capture_output=True, text=True,
-                          timeout=120)
+    proc = run_cli("run", "quick", "--out", str(out), "--executor", "bogus")
     assert proc.returncode == 2 and "unknown executor 'bogus'" in proc.stderr
     assert "Traceback" not in proc.stderr and not (out / "personas.parquet").exists()

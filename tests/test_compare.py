@@ -12,6 +12,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import popnavshift.cli.evaluate  # noqa: F401  (registers `compare`, as MAIN does)
+from forked_cli import run_cli
 from popnavshift.evaluate.compare import compare_table
 from popnavshift.evaluate.compare_page import display_table
 from popnavshift.evaluate.export import to_latex, to_markdown
@@ -93,7 +95,7 @@ def test_a_second_compare_reads_the_cards_and_simulates_nothing(quick):
 def test_user_mistakes_are_one_line_errors_before_anything_runs(tmp_path):
     for args, needle in ((("HRV0",), "did you mean 'HRVO'"),
                          (("reactive", "--out", "x.csv"), "--out must name an .html page")):
-        proc = cli("compare", *args, "--study-dir", "s", cwd=tmp_path)
+        proc = run_cli("compare", *args, "--study-dir", "s", cwd=tmp_path)  # forked
         assert proc.returncode == 2, proc.stderr
         lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
         assert len(lines) == 1 and needle in lines[0], proc.stderr

@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
+from forked_cli import run_cli
 from popnavshift.dictionary import STUDY_TABLES, data_markdown
 from popnavshift.pipeline import PersonaSource, PopulationSettings, run_personas
 from popnavshift.tables import SPECS
@@ -16,8 +15,7 @@ DOCS = Path(__file__).resolve().parents[1] / "docs" / "data.md"
 
 
 def describe(*args):
-    return subprocess.run([sys.executable, "-m", "popnavshift", "describe", *args],
-                          capture_output=True, text=True, timeout=300)
+    return run_cli("describe", *args)  # forked: a real process without the start-up
 
 
 def test_docs_data_md_is_the_generated_dictionary():

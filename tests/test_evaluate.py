@@ -13,7 +13,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import popnavshift.cli.evaluate  # noqa: F401  (registers `evaluate`, as MAIN does)
 from example_controller import EXAMPLE, USER_MODULE, install_example
+from forked_cli import run_cli
 from popnavshift.engine.study import load_study
 from popnavshift.errors import ConfigError
 from popnavshift.evaluate import card_tables, evaluate, make_card
@@ -123,7 +125,7 @@ def test_a_controller_that_raises_is_recorded_and_the_card_says_so(first_and_sec
 def test_bad_controllers_are_one_line_errors_before_anything_runs(tmp_path):
     for spec, needle in (("no_such_pkg_xyz.ctrl:Mine", "cannot import no_such_pkg_xyz.ctrl"),
                          ("collections:OrderedDict", "not a navground Behavior")):
-        proc = cli("evaluate", spec, "--study-dir", "s", cwd=tmp_path)
+        proc = run_cli("evaluate", spec, "--study-dir", "s", cwd=tmp_path)  # forked
         assert proc.returncode == 2, proc.stderr
         lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
         assert len(lines) == 1 and needle in lines[0], proc.stderr

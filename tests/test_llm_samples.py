@@ -14,6 +14,7 @@ import pandas as pd
 import pytest
 
 from cli_helpers import cli, tiny_study
+from forked_cli import run_cli
 from llm_server import Reply, make_requests, serve, valid_text
 from popnavshift.engine.study import study_from_dict
 from popnavshift.errors import ConfigError, RespondentError, TransportError
@@ -177,7 +178,7 @@ def test_a_study_with_two_samples_end_to_end(tmp_path):
     assert manifest["endpoint"] == server.openai_url + "/chat/completions"
     assert manifest["samples"] == 2 and manifest["extra_body"] == {"cache_prompt": False}
     assert "median" in manifest["aggregation"]
-    audit = cli("audit", str(tmp_path / "s"), "--permutations", "319", "--boot", "100")
+    audit = run_cli("audit", str(tmp_path / "s"), "--permutations", "319", "--boot", "100")
     assert audit.returncode == 0, audit.stderr
     assert "test–retest: 2 samples of 40 records" in audit.stderr
 

@@ -502,18 +502,14 @@ def test_hub_source_without_huggingface_hub_says_how_to_install(monkeypatch):
 
 
 def test_cli_decodes_a_release_laid_out_as_published(tmp_path, recs):
-    import subprocess
-    import sys
+    from forked_cli import run_cli
 
     recs[1]["time_pressure"] = "Late for a flight"  # an override: gss:r00001 lacks it
     folder = write_release(tmp_path / "rel", recs, nested=True, n_shards=2)
     out = tmp_path / "study"
 
-    def cli(*args):
-        return subprocess.run(
-            [sys.executable, "-m", "popnavshift", "personas", "--source", str(folder),
-             "--out", str(out), *args], capture_output=True, text=True, timeout=300,
-        )
+    def cli(*args):  # forked: a real process without the start-up
+        return run_cli("personas", "--source", str(folder), "--out", str(out), *args)
 
     proc = cli("--n", "57", "--seed", "4")
     assert proc.returncode == 0, proc.stderr

@@ -25,25 +25,20 @@ from popnavshift.analysis import (
 )
 from popnavshift.analysis.study import analyse
 from popnavshift.engine.folder import main_grid, read_study_folder
-from popnavshift.engine.runner import run_study
-from popnavshift.engine.study import study_from_dict
 from popnavshift.errors import InputError
 from popnavshift.report import build_report
-from report_study import STUDY
+from report_study import N_BOOT
 
-N_BOOT = 200
 EVIL = "<script>alert(1)</script>"
 STUDY_FILES = ("runs.parquet", "pedestrians.parquet", "populations.parquet", "episodes.parquet",
                "manifest.json", "personas.json", "responses.json", "figures")
 
 
-@pytest.fixture(scope="module")
-def quick(tmp_path_factory) -> Path:
-    """A quick-like study (4 populations, 10 episodes), run once, with its report."""
-    folder = tmp_path_factory.mktemp("quick")
-    run_study(study_from_dict(STUDY), folder, workers=1, show_progress=False)
-    build_report(folder, rng_seed=0, n_boot=N_BOOT, replays=1)
-    return folder
+@pytest.fixture
+def quick(reported_study) -> Path:
+    """A quick-like study (4 populations, 10 episodes) with its report (rng seed 0,
+    :data:`N_BOOT` resamples, one replay per kind), run once a session."""
+    return reported_study
 
 
 def copy_study(src: Path, dst: Path) -> Path:

@@ -13,6 +13,7 @@ import pandas as pd
 import pytest
 import yaml
 
+from forked_cli import run_cli
 from popnavshift.analysis.evidence import test_comparisons as run_tests
 from popnavshift.analysis.nulls import headline_designs
 from popnavshift.analysis.verdicts import decide
@@ -109,8 +110,7 @@ def test_calibrate_prints_every_rules_false_positive_rate(study):
     for rule in ("prediction t", "exact permutation", "crossover test", "episode-only"):
         assert rule in text, rule
     assert "no verdict rule claims more than its nominal level" in text
-    empty = subprocess.run([sys.executable, "-m", "popnavshift", "calibrate",
-                            str(study / "nowhere")], capture_output=True, text=True, timeout=60)
+    empty = run_cli("calibrate", str(study / "nowhere"))
     assert empty.returncode == 2 and "Traceback" not in empty.stderr
 
 
@@ -158,8 +158,7 @@ def test_plan_prints_the_power_advice_of_a_pilot(study, tmp_path):
     pilot = tmp_path / "pilot"  # a study folder without a report yet
     pilot.mkdir()
     (pilot / "stages.json").write_text("{}")
-    bare = subprocess.run([sys.executable, "-m", "popnavshift", "plan", str(cfg), "--from",
-                           str(pilot)], capture_output=True, text=True, timeout=120)
+    bare = run_cli("plan", str(cfg), "--from", str(pilot))
     assert bare.returncode == 0 and "no estimate yet" in bare.stdout + bare.stderr
 
 

@@ -18,10 +18,8 @@ from pathlib import Path
 
 import pytest
 
-from popnavshift.engine.runner import run_study
 from popnavshift.engine.study import study_from_dict
-from popnavshift.report import build_report
-from report_study import STUDY  # the same small study as test_report.py
+from report_study import STUDY
 
 CANDIDATES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -41,11 +39,10 @@ pytestmark = [pytest.mark.slow, pytest.mark.skipif(
     f"looked for {', '.join(CANDIDATES)} and /usr/bin/chromium")]
 
 
-@pytest.fixture(scope="module")
-def page(tmp_path_factory) -> Path:
-    folder = tmp_path_factory.mktemp("quick")
-    run_study(study_from_dict(STUDY), folder, workers=1, show_progress=False)
-    return build_report(folder, n_boot=100, replays=1)
+@pytest.fixture
+def page(reported_study) -> Path:
+    """The report of test_report.py's small study (report_study.py), built once a session."""
+    return reported_study / "report" / "index.html"
 
 
 class DevTools:

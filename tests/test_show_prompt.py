@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
-
 import pandas as pd
 import pytest
 
+from forked_cli import run_cli
 from llm_server import serve
 from popnavshift.io import write_parquet
 from popnavshift.pipeline import (
@@ -20,11 +18,7 @@ from popnavshift.pipeline import (
 
 
 def show(*args):
-    proc = subprocess.run(
-        [sys.executable, "-m", "popnavshift", "show-prompt", *args],
-        capture_output=True, text=True, timeout=300,
-    )
-    return proc
+    return run_cli("show-prompt", *args)  # forked: the fixture's server thread has ended
 
 
 @pytest.fixture(scope="module")

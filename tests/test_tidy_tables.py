@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import pandas as pd
 import pytest
 
 import popnavshift
+from forked_cli import run_cli
 from popnavshift.errors import ConfigError, InputError, UnknownNameError
 from popnavshift.populations.perturb import ProfileSet, with_profile_set_columns
 from popnavshift.tables import PROFILE_SET_COLUMNS
@@ -43,11 +42,8 @@ DOCS = Path(__file__).resolve().parents[1] / "docs" / "data.md"
 def study(tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("tidy")
     (folder / "tidy.yaml").write_text(STUDY, "utf-8")
-    proc = subprocess.run(
-        [sys.executable, "-m", "popnavshift", "run", str(folder / "tidy.yaml"),
-         "--out", str(folder / "out"), "--no-report"],
-        capture_output=True, text=True, timeout=600,
-    )
+    proc = run_cli("run", str(folder / "tidy.yaml"), "--out", str(folder / "out"),
+                   "--no-report", timeout=600)
     assert proc.returncode == 0, proc.stderr
     return folder / "out"
 
