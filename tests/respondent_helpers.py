@@ -1,14 +1,21 @@
-"""Respondents and answers the audit tests share (test_audit.py, test_audit_cli.py)."""
+"""Respondents, answers and the audit page the audit tests share (test_audit.py,
+test_audit_cli.py, test_audit_retest.py)."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from popnavshift.analysis.audit_verdict import MIN_PERMUTATIONS, audit_tables
+from popnavshift.analysis.study import Analysis
+from popnavshift.engine.folder import StudyFolder
+from popnavshift.engine.respondent_tables import read_respondent_tables
 from popnavshift.hashing import stable_seed
 from popnavshift.personas.variants import matched_ids
+from popnavshift.report.page import render_report
 from popnavshift.responses.collect import collect_responses
 from popnavshift.responses.probes import PROBE_IDS
 from popnavshift.responses.respondent import Answer, ProbeRequest, Progress, Respondent
@@ -36,3 +43,12 @@ def answers(personas: pd.DataFrame, respondent: Respondent) -> pd.DataFrame:
     responses, invalid, _ = collect_responses(personas, respondent, matched_ids(personas, 202))
     assert invalid.empty
     return responses
+
+
+def render_audit(folder: Path) -> str:
+    """The report page of a folder holding only respondent tables: the audit and its banner."""
+    tables = audit_tables(*read_respondent_tables(folder), n_perm=MIN_PERMUTATIONS, n_boot=200)
+    study = StudyFolder(folder, pd.DataFrame(), pd.DataFrame(), None, None, {}, {})
+    a = Analysis(selection="none", tables=tables,
+                 missing={"evidence": "no comparison was run", "delays": "none"})
+    return render_report(study, a, {}, folder / "report", {})

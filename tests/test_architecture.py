@@ -151,3 +151,16 @@ def test_the_size_allow_list_names_only_oversize_modules():
     stale = [m for m in OVERSIZE
              if m not in MODULES or len(MODULES[m].read_text("utf-8").splitlines()) <= MAX_LINES]
     assert not stale, f"OVERSIZE lists modules within the limit: {stale}"
+
+
+def test_no_test_module_imports_another():
+    """Shared fixtures and helpers live in plain helper modules (docs/architecture.md,
+    Tests), so running one test module never runs, or depends on, another."""
+    tests = Path(__file__).resolve().parent
+    found = []
+    for path in sorted(tests.glob("test_*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+            found += [f"{path.name}: {n}" for n in names if n.startswith("test_")]
+    assert found == []

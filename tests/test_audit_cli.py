@@ -6,21 +6,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pandas as pd
 import pytest
 
 from cli_helpers import assert_one_line_error
 from forked_cli import run_cli
-from popnavshift.analysis.audit_verdict import MIN_PERMUTATIONS, audit_tables
-from popnavshift.analysis.study import Analysis
-from popnavshift.engine.folder import StudyFolder
-from popnavshift.engine.respondent_tables import read_respondent_tables
+from popnavshift.analysis.audit_verdict import MIN_PERMUTATIONS
 from popnavshift.personas.synthetic import generate_personas
 from popnavshift.profiles.mappings import build_profiles
-from popnavshift.report.page import render_report
 from popnavshift.responses.respondent import Respondent
 from popnavshift.responses.rule import RuleRespondent
-from respondent_helpers import BlindRespondent, answers
+from respondent_helpers import BlindRespondent, answers, render_audit
 
 
 def write_folder(folder: Path, respondent: Respondent) -> Path:
@@ -76,16 +71,8 @@ def test_help_states_the_fewest_permutations():
     assert "not persona-sensitive" in proc.stdout
 
 
-def render(folder: Path) -> str:
-    tables = audit_tables(*read_respondent_tables(folder), n_perm=MIN_PERMUTATIONS, n_boot=200)
-    study = StudyFolder(folder, pd.DataFrame(), pd.DataFrame(), None, None, {}, {})
-    a = Analysis(selection="none", tables=tables,
-                 missing={"evidence": "no comparison was run", "delays": "none"})
-    return render_report(study, a, {}, folder / "report", {})
-
-
 def test_the_report_says_a_blind_respondent_is_not_usable_before_any_rate(blind_folder):
-    page = render(blind_folder)
+    page = render_audit(blind_folder)
     banner = page.index('id="respondent-audit"')
     assert banner < page.index('id="answer"') < page.index("Read the rates below with care")
     assert page.index("Read the rates below with care") < page.index('id="ranks"')
@@ -94,7 +81,7 @@ def test_the_report_says_a_blind_respondent_is_not_usable_before_any_rate(blind_
 
 
 def test_the_report_of_a_usable_respondent_carries_no_flag(rule_folder):
-    page = render(rule_folder)
+    page = render_audit(rule_folder)
     banner = page.index('id="respondent-audit"')
     assert "USABLE" in page[banner: page.index("</p>", banner)]
     assert "Read the rates below with care" not in page

@@ -25,6 +25,7 @@ from popnavshift.responses.rule import RuleRespondent
 from popnavshift.responses.samples import aggregate_samples
 from popnavshift.responses.schema import LEVELS
 from popnavshift.tables import ACTIONS, BLOCK_ITEMS, Q_COLUMNS
+from respondent_helpers import render_audit
 
 N_PERM, N_BOOT = 399, 400
 U_MEAN, U_SQUARE = 0.5, float(np.mean(np.linspace(0, 1, 5) ** 2))  # a uniform level
@@ -168,8 +169,6 @@ def test_aggregate_takes_the_median_item_and_the_modal_action():
 
 
 def test_the_report_shows_test_retest_or_says_it_was_not_measured(tmp_path):
-    from test_audit_cli import render
-
     few = generate_personas(120, seed=4)
     for k, folder in ((2, tmp_path / "two"), (1, tmp_path / "one")):
         responses, _, _ = collect_responses(few, NoisyRespondent(0.3), matched_ids(few, 30),
@@ -179,7 +178,7 @@ def test_the_report_shows_test_retest_or_says_it_was_not_measured(tmp_path):
         responses.to_parquet(folder / "responses.parquet")
         build_profiles(aggregate_samples(responses), few, "A").to_parquet(
             folder / "profiles.parquet")
-    two, one = render(tmp_path / "two"), render(tmp_path / "one")
+    two, one = render_audit(tmp_path / "two"), render_audit(tmp_path / "one")
     assert "Within-persona variance" in two and "2 samples of 150 records" in two
     assert "test–retest not measured" in one and "--samples 2" in one
 
