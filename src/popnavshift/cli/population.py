@@ -31,7 +31,8 @@ def _settings(personas: dict[str, Any] | None = None, respondent: dict[str, Any]
         except ValidationError as e:
             err = e.errors()[0]
             where = ".".join(str(x) for x in err["loc"])
-            raise ConfigError(f"--{where.replace('_', '-')}: {err['msg']}") from None
+            got = err.get("input")
+            raise ConfigError(f"--{where.replace('_', '-')}: {err['msg']}; got {got!r}") from None
 
     if personas is not None:
         kw["personas"] = model(PersonaSource, personas)
