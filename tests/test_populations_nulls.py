@@ -97,7 +97,7 @@ def test_population_names_are_written_from_their_spec_and_looked_up_not_parsed()
            for k in (1, 2)}}
     # a null replicate comes from a null design, never from a name a part lists
     for name in ("matched_swap1_a", "high_caution_sized2"):
-        with pytest.raises(ConfigError, match="unknown population"):
+        with pytest.raises(ConfigError, match="unknown population.*null_design"):
             study_from_dict({"name": "t", "parts": {"main": {"populations": [name]}}}, "t")
     with pytest.raises(ValueError, match="rename the condition"):
         index_of([PopulationSpec("x_sized1"), PopulationSpec.sized("x", 1)])

@@ -163,7 +163,9 @@ class Part(Strict):
             if not is_known(p):
                 # a ValueError: pydantic adds where it was (parts.main.populations.0)
                 raise ValueError(str(UnknownNameError("population", p,
-                                                      POPULATIONS + SPLIT_HALVES)))
+                                                      POPULATIONS + SPLIT_HALVES))
+                                 + " (null replicates are not listed: a part declares "
+                                 "them as null_design: {kind, replicates})")
         return v
 
     @model_validator(mode="after")
