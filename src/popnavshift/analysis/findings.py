@@ -11,7 +11,7 @@ paper's own figures are in :mod:`popnavshift.analysis.paper_reference`.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -250,6 +250,14 @@ CLAIM_BY_KEY: dict[str, Claim] = {c.key: c for c in CLAIMS}
 assert len(CLAIM_BY_KEY) == len(CLAIMS), "two claims share a key"
 
 
+def controller_needs(controllers: Iterable[str]) -> set[str]:
+    """The :attr:`Claim.needs` a study's ``controllers`` serve: ``controller:<name>`` for
+    each, and ``controllers`` when the paper's three are among them."""
+    have = set(controllers)
+    return {f"controller:{c}" for c in have} | (
+        {"controllers"} if set(PAPER_CONTROLLERS) <= have else set())
+
+
 def paper_findings(table1: pd.DataFrame, outcomes: pd.DataFrame, widths: dict[str, pd.DataFrame],
                    change: pd.DataFrame) -> list[Finding]:
     """The paper's qualitative findings (§V), each with whether it holds on our tables.
@@ -274,10 +282,8 @@ def available_findings(table1: pd.DataFrame, outcomes: pd.DataFrame,
     ``matched``: its matched rows; ``delays``: every controller has a mean delay; the
     controller findings need the paper's three controllers, the width findings a width
     series."""
-    have = {name for name, ok in (("pairs", pairs), ("matched", matched), ("delays", delays),
-                                  ("controllers", set(PAPER_CONTROLLERS) <= set(outcomes.index)))
-            if ok} | {f"width:{label}" for label in widths} | {
-        f"controller:{c}" for c in outcomes.index}
+    have = {name for name, ok in (("pairs", pairs), ("matched", matched), ("delays", delays))
+            if ok} | {f"width:{label}" for label in widths} | controller_needs(outcomes.index)
     inputs = Inputs(table1, outcomes, widths, change)
     found = []
     for claim in CLAIMS:

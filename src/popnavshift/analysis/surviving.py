@@ -19,11 +19,10 @@ import warnings
 import numpy as np
 import pandas as pd
 
-from ..paper import PAPER_CONTROLLERS
 from ..populations.identity import MATCHED_PAIR
 from ..tables import NO_ROBOT
 from .delay import CELL_KEY, cell_metrics, episode_cells, paired_delays
-from .findings import CLAIM_BY_KEY, CLAIMS, WIDTH_SCENES
+from .findings import CLAIM_BY_KEY, CLAIMS, WIDTH_SCENES, controller_needs
 from .nulls import centred_interval
 from .resample import build_design, episode_weights, resampled_metrics
 from .significance import LEVEL
@@ -35,9 +34,7 @@ METRICS_NEEDED = ("mean_delay", "worst_decile", "success_share", "timeout_share"
 def _inputs_present(cells: pd.DataFrame) -> set[str]:
     """The :attr:`.findings.Claim.needs` the cell table can serve an interval for."""
     ctrls, pops = set(cells["controller"]), set(cells["population"])
-    have = {"pairs", "delays", *(f"controller:{c}" for c in ctrls)}
-    if set(PAPER_CONTROLLERS) <= ctrls:
-        have.add("controllers")
+    have = {"pairs", "delays", *controller_needs(ctrls)}
     if set(MATCHED_PAIR) <= pops:
         have.add("matched")
     if len(pops) >= 2 and cells["scene"].isin(WIDTH_SCENES).any():
