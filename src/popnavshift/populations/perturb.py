@@ -141,7 +141,7 @@ class ProfileSet:
 
     @property
     def is_structure(self) -> bool:
-        return self.perturbation in STRUCTURE_PERTURBATIONS
+        return self.perturbation in STRUCTURE
 
     def columns(self) -> dict[str, str]:
         """The set's columns of the runs and pedestrians tables (:data:`PROFILE_SET_COLUMNS`)."""
@@ -233,8 +233,6 @@ STRUCTURE: dict[str, Structure] = {
     "shuffle": Structure(populations=lambda pops, _, seed: shuffle_columns(pops, seed)),
     "block": Structure(tuple(BLOCKS), profiles=block_profiles),
 }
-#: perturbations of the structure study (built only when a study asks for one)
-STRUCTURE_PERTURBATIONS: tuple[str, ...] = tuple(STRUCTURE)
 #: the ``perturbation`` of a profile set: how it departs from its base mapping
 PERTURBATIONS: tuple[str, ...] = ("none", *STRUCTURE, "second_respondent")
 
