@@ -7,7 +7,9 @@ import pandas as pd
 import pytest
 
 from example_controller import EXAMPLE, USER_MODULE, install_example
-from popnavshift.engine.plan import Batch, Run
+from popnavshift.engine.plan import Batch, Run, batches
+from popnavshift.engine.run_inputs import run_inputs
+from popnavshift.engine.stamps import code_stamps
 from popnavshift.engine.study import study_from_dict
 from popnavshift.engine.worker import Context, run_batch
 from popnavshift.episodes import assign_slots, get_episode
@@ -192,8 +194,9 @@ def test_our_own_bugs_are_not_blamed_on_the_controller(user_path, monkeypatch):
 def test_the_worker_records_a_controller_error_and_goes_on(user_path):
     runs = tuple(Run(EPISODE, "mixed", c, "orca", "A", "main")
                  for c in ("none", "user_ctrls:RaisesNearPeds", CLASS_SPEC))
-    _, table, peds, _ = run_batch(Batch(EPISODE, "orca", "A", runs),
-                                  Context(populations=members(), episode_seed=0, specs={}))
+    inputs = run_inputs(runs, members(), 0, code_stamps(r.controller for r in runs))
+    (batch,) = batches(runs, inputs)
+    _, table, peds, _ = run_batch(batch, Context(populations=members(), episode_seed=0, specs={}))
     out = table.set_index("controller")
     assert out.loc["user_ctrls:RaisesNearPeds", "outcome"] == "controller_error"
     assert "a pedestrian is too close" in out.loc["user_ctrls:RaisesNearPeds", "error"]

@@ -206,7 +206,17 @@ def run_profiles(folder: Path, s: PopulationSettings) -> pd.DataFrame:
 
 
 def run_populations(folder: Path, s: PopulationSettings) -> pd.DataFrame:
+    """The populations stage: :func:`build_populations` from the folder's tables, written
+    with its profile figures."""
+    table = build_populations(folder, s)
+    write_parquet(table, folder / "populations.parquet")
+    write_profile_figures(table[table["mapping"] == "A"], folder / "figures")
+    return table
 
+
+def build_populations(folder: Path, s: PopulationSettings) -> pd.DataFrame:
+    """The ``populations`` table under settings ``s`` from the folder's personas, responses
+    and profiles, written nowhere (``plan`` counts the runs a changed null design adds)."""
     personas = read_table(folder / "personas.parquet", "personas")
     responses = read_responses(folder / "responses.parquet")
     profiles = read_table(folder / "profiles.parquet", "profiles")
@@ -231,9 +241,6 @@ def run_populations(folder: Path, s: PopulationSettings) -> pd.DataFrame:
         base_a = next(t for t in tables if t["mapping"].iloc[0] == "A")
         tables += [kind.populations(base_a, arg, s.seed) for kind in STRUCTURE.values()
                    if kind.populations is not None for arg in kind.args]
-    table = pd.concat(tables, ignore_index=True)
-    write_parquet(table, folder / "populations.parquet")
-    write_profile_figures(table[table["mapping"] == "A"], folder / "figures")
-    return table
+    return pd.concat(tables, ignore_index=True)
 
 

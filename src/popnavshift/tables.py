@@ -289,6 +289,11 @@ RUNS = declare(
     "runs",
     (
         *_RUN_COLUMNS,
+        _col("run_inputs", "str", "16 hex digits hashing everything the run was simulated "
+             "from: its episode draw, the profiles and persona ids in its slots, its backend "
+             "and the code it ran (simulator, navground, controller). Equal in two runs: the "
+             "same simulation; a later `run` carries every stored run whose inputs it still "
+             "plans"),
         _col("scene", "str", "scene of the episode"),
         *_CELL_COLUMNS,
         _col("outcome", "str", "the robot's first event: success, pedestrian_collision, "

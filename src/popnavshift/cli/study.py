@@ -31,6 +31,9 @@ def plan(
     ] = None,
     report: Annotated[bool, typer.Option(
         help="Check that the report can be written too, as `run` does by default.")] = True,
+    out: Annotated[Path | None, typer.Option(
+        "--out", "-o", help="The study folder `run` would write (default: the study's own "
+        "folder): how many runs it would simulate there.")] = None,
 ) -> None:
     """Print the run counts of a study, per part (nothing is run), and what would decide
     each undecided headline rate (more seed sets, more null replicates, or nothing).
@@ -51,10 +54,13 @@ def plan(
     counts = count_runs(s, all_episodes(s.seed))
     if from_dir is not None:
         check_pilot(from_dir)
-    pilot = from_dir or default_folder(s.name)
+    target = out or default_folder(s.name)
+    pilot = from_dir or target
     advice = power_advice(pilot / "report" / "tables" / "evidence_power.csv")
+    pending = _pending(s, target)
     if json_out:
-        typer.echo(json.dumps({"study": s.name, "parts": counts,
+        typer.echo(json.dumps({"study": s.name, "parts": counts, "folder": str(target),
+                               "pending": None if pending is None else vars(pending),
                                "power": advice.to_dict("records") if advice is not None
                                else None}, indent=2, default=str))
         return
@@ -70,6 +76,7 @@ def plan(
         )
     stdout.print(t)
     stdout.print("'distinct' is what a run executes: parts share identical runs.")
+    stdout.print(_pending_text(target, pending), highlight=False)
     if advice is None:
         stdout.print(f"power: no estimate yet ({say(pilot)} has no report). Run a "
                       "pilot, e.g. `popnavshift run pilot` (the matched pair and its swap null "
@@ -87,6 +94,24 @@ def plan(
                   "spread falling with seed sets as the pilot's own replicate curve measured; "
                   "add them as `seeds:` and `replicates:` to the parts that run the comparison "
                   "and its null.", highlight=False)
+
+
+def _pending(study, folder: Path):
+    """What `run` would simulate in ``folder`` (None: no study tables there yet)."""
+    from ..engine.pending import has_study_tables, pending_runs
+
+    return pending_runs(study, folder) if has_study_tables(folder) else None
+
+
+def _pending_text(folder: Path, pending) -> str:
+    """The pending count in words."""
+    if pending is None:
+        return f"{say(folder)} holds no study yet: `run` simulates every distinct run."
+    if pending.execute is None:
+        return (f"in {say(folder)}: the {pending.stale} stage would run again first, so which "
+                f"of the {pending.planned:,} runs change is known only after it (at most all).")
+    return (f"in {say(folder)}: `run` would simulate {pending.execute:,} new runs and keep "
+            f"{pending.kept:,} it already holds with the same inputs.")
 
 
 def advice_text(r) -> str:

@@ -105,14 +105,18 @@ class CarriedRows:
 
 
 def _sorted_chunk(frames: list[pd.DataFrame], name: str, key: list[str],
-                  specs: Mapping[str, PopulationSpec]) -> pd.DataFrame:
+                  specs: Mapping[str, PopulationSpec],
+                  inputs: Mapping[tuple, str]) -> pd.DataFrame:
     """One chunk of a table as the whole-table compaction made it: joined, ``error`` as
-    a string column, sorted by ``key`` and checked."""
+    a string column, each run's ``run_inputs`` from ``inputs``, sorted by ``key`` and
+    checked."""
     df = pd.concat(frames, ignore_index=True)
     if name == "runs":
         if "error" not in df.columns:  # shards written before the column existed
             df["error"] = None
         df["error"] = df["error"].astype("string")  # all-None would be Arrow's null type
+        keys = zip(*(df[c] for c in RUN_KEY), strict=True)
+        df["run_inputs"] = [inputs.get(k) for k in keys]
     df = with_profile_set_columns(df)  # rows stored before those columns existed
     df = with_population_columns(df, specs)
     df = df.sort_values(key, kind="stable").reset_index(drop=True)
@@ -146,13 +150,15 @@ class _TableWriter:
 
 def write_compacted(folder: Path, chunks: list[list[Shard]],
                     carried: tuple[set[tuple], dict[tuple, str]] | None = None,
-                    specs: Mapping[str, PopulationSpec] | None = None) -> tuple[int, int]:
+                    specs: Mapping[str, PopulationSpec] | None = None,
+                    inputs: Mapping[tuple, str] | None = None) -> tuple[int, int]:
     """Write ``folder/runs.parquet`` and ``folder/pedestrians.parquet`` from the shard
     ``chunks`` (:func:`episode_chunks`) plus, with ``carried`` (the keys of the runs to
     carry and the part of each), those runs' rows of the present tables; returns their
     row counts. Nothing replaces the present tables before both new ones are complete.
     ``specs`` (the study's populations) fill the population columns of rows stored
-    before they existed."""
+    before they existed; ``inputs`` gives every run its ``run_inputs`` (the digest of its
+    own inputs, :mod:`.run_inputs`)."""
     readers = {name: CarriedRows(folder / file, *carried) if carried else None
                for name, file, _ in TABLES}
     with ExitStack() as stack:
@@ -168,7 +174,8 @@ def write_compacted(folder: Path, chunks: list[list[Shard]],
                         frames += reader.upto(last)
                     frames = [f for f in frames if not f.empty] or frames[:1]
                     if frames:
-                        writers[name].write(_sorted_chunk(frames, name, key, specs or {}))
+                        writers[name].write(_sorted_chunk(frames, name, key, specs or {},
+                                                          inputs or {}))
         finally:
             for w in writers.values():
                 w.close()

@@ -12,7 +12,7 @@ runs that controller alone.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from ..episodes.specs import seed_set_id
@@ -47,13 +47,15 @@ class Batch:
     backend: str
     mapping: str
     runs: tuple[Run, ...]
-    inputs: str = ""  # stamp of everything upstream (populations, episode seed)
+    #: each run's digest of its own inputs (:func:`.run_inputs.run_inputs`), in run order
+    inputs: tuple[str, ...] = ()
 
     @property
     def id(self) -> str:
-        """Stable id of the batch's content and inputs (its shard file name): a shard made
-        from other populations or episodes never matches."""
-        return digest([self.inputs, [r.key for r in self.runs]])[:20]
+        """Stable id of the batch's runs and their inputs (its shard file name): a shard
+        made from other slot profiles, episode draws or code never matches."""
+        return digest([[list(r.key), i] for r, i in zip(self.runs, self.inputs or
+                                                         ("",) * len(self.runs), strict=True)])[:20]
 
 
 def select_episodes(selection: EpisodeSelection, episodes: Iterable) -> list:
@@ -106,22 +108,15 @@ def plan_study(study: Study, episodes: Iterable) -> list[Run]:
     return runs
 
 
-def batches(runs: Iterable[Run], inputs: str = "",
-            code: dict[str, str] | None = None) -> list[Batch]:
-    """Group runs by (episode, backend, mapping), keeping plan order; ``inputs`` is the
-    stamp of the upstream tables the runs are built from, ``code`` the code stamp of
-    each controller (:func:`popnavshift.engine.stamps.run_code_stamp`): a batch's id covers
-    the stamps of the controllers it runs, so edited code never reuses a shard."""
+def batches(runs: Iterable[Run], inputs: Mapping[tuple, str] | None = None) -> list[Batch]:
+    """Group runs by (episode, backend, mapping), keeping plan order; ``inputs`` gives each
+    run's digest of its own inputs (:func:`.run_inputs.run_inputs`: its slot profiles,
+    episode draw and code), so a batch's id changes when any of its runs' inputs does."""
     groups: dict[tuple[str, str, str], list[Run]] = {}
     for r in runs:
         groups.setdefault((r.episode, r.backend, r.mapping), []).append(r)
-    out = []
-    for (e, b, m), rs in groups.items():
-        stamp = inputs
-        if code is not None:
-            stamp = digest([inputs, sorted({code[r.controller] for r in rs})])
-        out.append(Batch(e, b, m, tuple(rs), stamp))
-    return out
+    return [Batch(e, b, m, tuple(rs), tuple(inputs[r.key] for r in rs) if inputs else ())
+            for (e, b, m), rs in groups.items()]
 
 
 def count_runs(study: Study, episodes: Iterable) -> dict[str, dict[str, int]]:

@@ -31,7 +31,7 @@ from ..tables import RUN_KEY
 from ..version import __version__
 from .batch_plan import plan_batches, run_plan
 from .plan import count_runs, plan_study
-from .stages import STAGES, Stage, batch_inputs, stage_stamps
+from .stages import STAGES, Stage, legacy_batch_inputs, stage_stamps
 from .store import RunStore, read_manifest, read_stamps, readable_parquet
 from .study import Study
 from .validate import profile_mappings, validate_study
@@ -138,6 +138,7 @@ def run_study(
     report = RunReport(folder)
     started = time.perf_counter()
     settings = population_settings(study)
+    stored = stored_inputs(folder, study.seed)  # before the stages replace their tables
     report.stages_run = run_stages(folder, settings, show_progress)
     populations = read_table(folder / "populations.parquet", "populations")
     check_members(populations["population"].unique(), settings.required or (),
@@ -152,10 +153,11 @@ def run_study(
             hint="robustness labels need `respondent2` or a structure part",
         )
     store = RunStore(folder)
-    plan = plan_batches(runs, store, batch_inputs(read_stamps(folder)))
+    plan = plan_batches(runs, store, populations, study.seed, stored=stored)
     report.planned = len(runs)
     report.reused = plan.reused
-    complete = _manifest_describes(folder, study) and not plan.batches
+    # a folder compacted before runs carried their inputs is compacted once more, with them
+    complete = _manifest_describes(folder, study) and not plan.batches and stored is None
     if not plan.todo and not report.stages_run and complete and _holds_exactly(folder, runs):
         report.seconds = time.perf_counter() - started
         return report
@@ -179,6 +181,21 @@ def run_study(
         count_runs(study, episodes),
     )
     return report
+
+
+def stored_inputs(folder: Path, episode_seed: int) -> dict[tuple, str] | None:
+    """The digests of the stored runs of a folder compacted before runs carried their own
+    inputs (:meth:`.store.RunStore.legacy_inputs`), from its populations as they are before
+    any stage runs again; None for a folder with nothing to migrate."""
+    stamps = read_stamps(folder)
+    store = RunStore(folder)
+    record = stamps.get(store.RECORD)
+    path = folder / "populations.parquet"
+    if (not isinstance(record, dict) or "inputs" not in record or "populations" not in stamps
+            or "episodes" not in stamps or not readable_parquet(path)):
+        return None
+    return store.legacy_inputs(read_table(path, "populations"), episode_seed,
+                               legacy_batch_inputs(stamps))
 
 
 def _manifest_describes(folder: Path, study: Study) -> bool:

@@ -5,9 +5,9 @@ records its *stamp* in ``stages.json``, a hash of the settings that produced it,
 chained through the stamp of the stage it reads (``after``). A stage whose stamp
 or output is out of date is run again, and so is every stage after it in the
 chain (:func:`popnavshift.engine.runner.run_stages`). The runs come last
-(:mod:`.plan`, :mod:`.executors`): their batches are stamped with the
-populations' and episodes' stamps (:func:`batch_inputs`) and the code they run
-(:mod:`.stamps`).
+(:mod:`.plan`, :mod:`.executors`): each run is identified by its own inputs
+(:mod:`.run_inputs`: its episode draw, slot profiles and code), never by a stage's
+stamp, so a changed stage reruns only the runs whose inputs it changed.
 
 The runner, ``popnavshift evaluate``, the CLI and the benchmarks read this
 declaration; the stage functions themselves live in :mod:`popnavshift.pipeline`.
@@ -102,7 +102,9 @@ def stage_stamps(s: PopulationSettings) -> dict[str, str]:
     return stamps
 
 
-def batch_inputs(stamps: Mapping[str, str]) -> str:
-    """The stamp of everything a batch of runs is built from (the populations and the
-    episode draws), from a folder's stage stamps: part of every batch id."""
+def legacy_batch_inputs(stamps: Mapping[str, str]) -> str:
+    """The stamp of the populations and episode draws that the run tables of a folder
+    compacted before runs carried their own inputs were made from (their record's
+    ``inputs``), from the folder's stage stamps: such a folder's runs are migrated
+    (:meth:`.store.RunStore.legacy_inputs`) only when it matches."""
     return digest([stamps["populations"], stamps["episodes"]])

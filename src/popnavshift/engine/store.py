@@ -7,9 +7,9 @@ metadata. On resume a batch counts as done only when both shards read back
 with the right tag and row count; anything else (missing, truncated, corrupt,
 foreign) is deleted and redone, never merged. At the end the shards are
 compacted, sorted by run key, into ``runs.parquet`` and ``pedestrians.parquet``
-(a few episodes at a time, :mod:`.compact`);
-a later run of the study carries over from them every run it still plans with
-unchanged inputs and code (:meth:`RunStore.carried`).
+(a few episodes at a time, :mod:`.compact`), each run with the digest of its own inputs
+(``run_inputs``, :mod:`.run_inputs`); a later run of the study carries over from them
+every run it still plans with the same digest (:meth:`RunStore.carried`).
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from ..tables import RUN_KEY as TABLE_RUN_KEY
 from ..tables import RUNS
 from .compact import episode_chunks, write_compacted
 from .plan import Batch, Run
+from .run_inputs import run_inputs
 
 RUN_KEY = list(TABLE_RUN_KEY)
 META_KEY = b"popnavshift"
@@ -52,10 +53,14 @@ def read_stamps(folder: Path) -> dict:
 
 
 def _stamp_ok(key: str, value: object) -> bool:
-    """A stage's stamp is a string; the run record (:attr:`RunStore.RECORD`) holds the
-    inputs stamp and each controller's code stamp."""
+    """A stage's stamp is a string; the run record (:attr:`RunStore.RECORD`) says the
+    compacted tables are whole (``{"run_inputs": 1}``), or, in a folder compacted before
+    runs carried their own digests, holds the inputs stamp and each controller's code
+    stamp (:meth:`RunStore.legacy_inputs`)."""
     if key != RunStore.RECORD:
         return isinstance(value, str)
+    if isinstance(value, dict) and value.get("run_inputs") == RunStore.IDENTITY:
+        return True
     return (isinstance(value, dict) and isinstance(value.get("inputs"), str)
             and isinstance(value.get("code", {}), dict))
 
@@ -147,8 +152,9 @@ class RunStore:
         except Exception:
             return False
 
-    def is_done(self, batch: Batch) -> bool:
-        """True when both shards of ``batch`` are present and valid; otherwise cleans them."""
+    def is_done(self, batch: Batch, clean: bool = True) -> bool:
+        """True when both shards of ``batch`` are present and valid; otherwise cleans them
+        (unless ``clean`` is False: a plan that only counts changes nothing)."""
         runs_path, peds_path = self._paths(batch)
         if (
             runs_path.exists()
@@ -157,29 +163,56 @@ class RunStore:
             and self._valid(peds_path, batch.id, None)
         ):
             return True
-        for p in (runs_path, peds_path):
-            p.unlink(missing_ok=True)
+        if clean:
+            for p in (runs_path, peds_path):
+                p.unlink(missing_ok=True)
         return False
 
     # ---- runs carried over from the compacted tables ----
-    #: stages.json entry: the inputs and code stamps the compacted tables were made with
+    #: stages.json entry: the compacted tables are whole (written last by a compaction)
     RECORD = "runs"
+    #: its value's version: runs carry the digest of their own inputs (``run_inputs``)
+    IDENTITY = 1
 
-    def carried(self, planned: list[Run], inputs: str, code: dict[str, str]) -> set[tuple]:
-        """Keys of the ``planned`` runs the compacted tables already hold, made from
-        the same ``inputs`` and with the same ``code`` stamp of their controller:
-        they are not run again. Empty without a record (never compacted, or
-        compaction interrupted)."""
+    def carried(self, planned: Mapping[tuple, str],
+                stored: Mapping[tuple, str] | None = None) -> set[tuple]:
+        """Keys of the ``planned`` runs (key → digest of its inputs) the compacted tables
+        already hold with the same digest: they are not run again. ``stored`` stands in
+        for the tables' ``run_inputs`` column when they predate it (:meth:`legacy_inputs`).
+        Empty without a record (never compacted, or compaction interrupted) or when a
+        table is damaged or lacks a column of today's."""
+        if stored is not None:
+            return {k for k, d in planned.items() if stored.get(k) == d}
         record = self._record()
         runs_path = self.folder / "runs.parquet"
-        if (record is None or record.get("inputs") != inputs or not self.tables_intact()
+        if (record is None or record.get("run_inputs") != self.IDENTITY
+                or not self.tables_intact()
                 or set(RUNS.names) - set(pq.read_schema(runs_path).names)):  # older columns
             return set()
-        made_with = record.get("code", {})
-        have = pd.read_parquet(runs_path, columns=RUN_KEY)
-        keys = set(zip(*(have[c] for c in RUN_KEY), strict=True))
-        return {r.key for r in planned
-                if r.key in keys and made_with.get(r.controller) == code[r.controller]}
+        have = pd.read_parquet(runs_path, columns=[*RUN_KEY, "run_inputs"])
+        keys = zip(*(have[c] for c in RUN_KEY), strict=True)
+        return {k for k, d in zip(keys, have["run_inputs"], strict=True)
+                if planned.get(k) == d}
+
+    def legacy_inputs(self, populations: pd.DataFrame, episode_seed: int,
+                      inputs_stamp: str) -> dict[tuple, str] | None:
+        """The digests of the runs of tables compacted before runs carried their own
+        (a record of the populations' and episodes' stamps and each controller's code
+        stamp), computed from ``populations`` as it is now: only when the record's stamp
+        is ``inputs_stamp`` (the stamp of the folder's present populations and episodes,
+        so the stored runs were simulated from them), each run with the code stamp it was
+        run with. None when there is nothing to migrate or it cannot be trusted (then
+        nothing is carried, as before)."""
+        record = self._record()
+        if (record is None or "inputs" not in record or record["inputs"] != inputs_stamp
+                or not self.tables_intact()):
+            return None
+        columns = set(pq.read_schema(self.folder / "runs.parquet").names)
+        if set(RUNS.names) - columns != {"run_inputs"}:
+            return None
+        have = pd.read_parquet(self.folder / "runs.parquet", columns=RUN_KEY)
+        keys = list(zip(*(have[c] for c in RUN_KEY), strict=True))
+        return run_inputs(keys, populations, episode_seed, record.get("code", {}))
 
     def tables_intact(self) -> bool:
         """Whether both compacted tables exist and read back. A damaged one (a truncated
@@ -200,30 +233,34 @@ class RunStore:
         write_json(stamps, path)
 
     def compact_files(self, batches: list[Batch], planned: list[Run] | None = None,
-                      carried: set[tuple] | None = None, inputs: str = "",
-                      code: dict[str, str] | None = None,
-                      specs: Mapping[str, PopulationSpec] | None = None) -> tuple[int, int]:
+                      carried: set[tuple] | None = None,
+                      inputs: Mapping[tuple, str] | None = None,
+                      specs: Mapping[str, PopulationSpec] | None = None, *,
+                      record: bool = True) -> tuple[int, int]:
         """Write the two study tables, sorted by key: every batch's shards, plus the
         ``carried`` runs (keys) of the present compacted tables, with their part as
-        ``planned`` now says; returns their row counts. Streamed a few episodes at a
-        time (:mod:`.compact`). The record of ``inputs`` and ``code`` is removed first
-        and written last, so tables a crash left half-written are never carried."""
+        ``planned`` now says and the digest of their inputs as ``inputs`` says
+        (``run_inputs``); returns their row counts. Streamed a few episodes at a time
+        (:mod:`.compact`). The record is removed first and written last (``record``: the
+        tables are a study's, to be carried by its next run), so tables a crash left
+        half-written are never carried."""
         shards = [(b.episode, *self._paths(b), len(b.runs)) for b in batches]
         keep = None
         if carried:
             keep = (set(carried), {r.key: r.part for r in planned or []})
         self._set_record(None)
-        counts = write_compacted(self.folder, episode_chunks(shards), keep, specs)
-        if code is not None:
-            self._set_record({"inputs": inputs, "code": code})
+        counts = write_compacted(self.folder, episode_chunks(shards), keep, specs,
+                                 inputs or {})
+        if record:
+            self._set_record({"run_inputs": self.IDENTITY})
         return counts
 
     def compact(self, batches: list[Batch], planned: list[Run] | None = None,
-                carried: set[tuple] | None = None, inputs: str = "",
-                code: dict[str, str] | None = None,
-                specs: Mapping[str, PopulationSpec] | None = None
-                ) -> tuple[pd.DataFrame, pd.DataFrame]:
+                carried: set[tuple] | None = None,
+                inputs: Mapping[tuple, str] | None = None,
+                specs: Mapping[str, PopulationSpec] | None = None, *,
+                record: bool = True) -> tuple[pd.DataFrame, pd.DataFrame]:
         """:meth:`compact_files`, then the two tables read back (for small studies)."""
-        self.compact_files(batches, planned, carried, inputs, code, specs)
+        self.compact_files(batches, planned, carried, inputs, specs, record=record)
         return (pd.read_parquet(self.folder / "runs.parquet"),
                 pd.read_parquet(self.folder / "pedestrians.parquet"))

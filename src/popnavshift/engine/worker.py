@@ -151,7 +151,8 @@ def run_batch(
     slots: dict[str, SlotProfiles] = {}  # per population: the same for every controller
     run_rows, ped_columns = [], []
     ped_keys: dict[str, list] = {}
-    for run in batch.runs:
+    digests = batch.inputs or (None,) * len(batch.runs)
+    for run, run_inputs in zip(batch.runs, digests, strict=True):
         if run.population not in slots:
             values, ids = _members(ctx, batch.mapping, run.population)
             slots[run.population] = profiles_of_members(spec, values, ids)
@@ -168,7 +169,7 @@ def run_batch(
             "seed_set": seed_set,
             **profile_set,
         }
-        run_rows.append({**result.run, **keys, "error": error})
+        run_rows.append({**result.run, **keys, "run_inputs": run_inputs, "error": error})
         ped_columns.append(result.ped_columns)
         for k, value in keys.items():  # one value per run, repeated per pedestrian
             ped_keys.setdefault(k, []).append(value)

@@ -41,8 +41,7 @@ from ..engine.batch_plan import plan_batches, run_plan
 from ..engine.plan import plan_study
 from ..engine.rebuild import rebuild_run
 from ..engine.runner import run_study
-from ..engine.stages import batch_inputs
-from ..engine.store import RunStore, read_stamps
+from ..engine.store import RunStore
 from ..engine.study import Study
 from ..engine.worker import Context
 from ..episodes.specs import all_episodes
@@ -184,12 +183,12 @@ def _run_extra(study: Study, part_name: str, controllers: tuple[str, ...], base_
     runs = plan_study(study.model_copy(update={"parts": {part_name: part}}),
                       all_episodes(seed=study.seed))
     store = _SharedShards(base_folder, out)
+    populations = read_table(base_folder / "populations.parquet", "populations")
     # the runner's batches and ids: its shards are reused, and it reuses these
-    plan = plan_batches(runs, store, batch_inputs(read_stamps(base_folder)), carry=False)
-    n_todo = len(runs) - plan.reused
+    plan = plan_batches(runs, store, populations, study.seed, carry=False)
+    n_todo = plan.to_execute
     say(f"{', '.join((NO_ROBOT,) * no_robot + controllers)}: {plan.reused:,} runs reused, "
         f"{n_todo:,} to run")
-    populations = read_table(base_folder / "populations.parquet", "populations")
     out.mkdir(parents=True, exist_ok=True)
     context = Context(populations, study.seed, study.population_specs())
     run_plan(plan, store, context, workers, show_progress=show_progress)
