@@ -20,11 +20,11 @@ from popnavshift.analysis.audit_verdict import (
     audit_respondent,
     audit_tables,
 )
-from popnavshift.engine.respondent_tables import RespondentTables
 from popnavshift.errors import ConfigError
 from popnavshift.personas.synthetic import generate_personas
 from popnavshift.personas.variants import matched_ids
 from popnavshift.profiles.mappings import build_profiles
+from popnavshift.read.respondent_tables import RespondentTables
 from popnavshift.responses.collect import collect_responses
 from popnavshift.responses.probes import PROBE_IDS
 from popnavshift.responses.respondent import Answer, ProbeRequest, Progress, Respondent

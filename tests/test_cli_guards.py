@@ -129,8 +129,8 @@ def test_run_refuses_a_folder_that_is_not_a_study(tmp_path):
 
 
 def test_a_command_without_force_does_not_offer_it(tmp_path):
+    from popnavshift.design.study import load_study
     from popnavshift.engine.ownership import claim_folder
-    from popnavshift.engine.study import load_study
     from popnavshift.errors import ConfigError
 
     (tmp_path / "notes.txt").write_text("mine")

@@ -16,7 +16,7 @@ import pytest
 import popnavshift.cli.evaluate  # noqa: F401  (registers `evaluate`, as MAIN does)
 from example_controller import EXAMPLE, USER_MODULE, install_example
 from forked_cli import run_cli
-from popnavshift.engine.study import load_study
+from popnavshift.design.study import load_study
 from popnavshift.errors import ConfigError
 from popnavshift.evaluate import card_tables, evaluate, make_card
 from popnavshift.evaluate.card import population_gaps, worst_run
@@ -208,7 +208,7 @@ def test_an_edited_controller_module_gets_a_new_stamp(tmp_path, monkeypatch):
 
 @pytest.mark.slow  # runs and evaluates a study (the quick one, or a small one)
 def test_a_study_without_no_robot_runs_or_a_baseline_gets_them_run_once(tmp_path):
-    from popnavshift.engine.study import study_from_dict
+    from popnavshift.design.study import study_from_dict
 
     study = study_from_dict({
         "name": "lean", "personas": {"n": 300}, "matched_n": 40, "mappings": ["A"],
@@ -233,8 +233,8 @@ def test_a_study_without_no_robot_runs_or_a_baseline_gets_them_run_once(tmp_path
 def test_a_study_that_adds_the_evaluated_controller_reuses_its_runs(tmp_path):
     """`evaluate` and `run` share one batch executor and one batch id: the runs an
     evaluation made are the study's batches once the study plans them."""
+    from popnavshift.design.study import study_from_dict
     from popnavshift.engine.runner import run_study
-    from popnavshift.engine.study import study_from_dict
 
     part = {"populations": ["mixed", "matched_base"], "controllers": ["robot_orca"],
             "baseline": False,

@@ -16,7 +16,7 @@ import pytest
 from cli_helpers import cli, tiny_study
 from forked_cli import run_cli
 from llm_server import Reply, make_requests, serve, valid_text
-from popnavshift.engine.study import study_from_dict
+from popnavshift.design.study import study_from_dict
 from popnavshift.errors import ConfigError, RespondentError, TransportError
 from popnavshift.progress import PlainLines
 from popnavshift.redact import MASK, redact, register_secret

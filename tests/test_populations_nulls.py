@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from popnavshift.engine.study import study_from_dict
+from popnavshift.design.study import study_from_dict
 from popnavshift.errors import ConfigError
 from popnavshift.personas.synthetic import generate_personas
 from popnavshift.personas.variants import matched_ids

@@ -15,7 +15,7 @@ from typing import get_args
 import pandas as pd
 import pytest
 
-from popnavshift.engine.study import NullDesign, load_study
+from popnavshift.design.study import NullDesign, load_study
 from popnavshift.populations.identity import NULL_KINDS
 from recipes import package_with, run_with
 
@@ -63,7 +63,7 @@ NULL_RECIPE = {
         if spec.role == "sized_null":
 '''),
     ],
-    "engine/study.py": [('    kind: Literal["swap", "sized"]\n',
+    "design/study.py": [('    kind: Literal["swap", "sized"]\n',
                          '    kind: Literal["swap", "sized", "relabel"]\n')],
     "analysis/nulls.py": [
         ("    ARMS,\n    MATCHED_PAIR,\n", "    ARMS,\n    MATCHED_PAIR,\n    NULL_KINDS,\n"),
@@ -162,7 +162,7 @@ import json
 from pathlib import Path
 from popnavshift.cli.study import calibrate
 from popnavshift.engine.runner import run_study
-from popnavshift.engine.study import load_study, study_from_dict
+from popnavshift.design.study import load_study, study_from_dict
 from popnavshift.progress import console
 from popnavshift.report import build_report
 folder = Path({str(folder)!r})

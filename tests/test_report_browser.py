@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from popnavshift.engine.study import study_from_dict
+from popnavshift.design.study import study_from_dict
 from report_study import STUDY
 
 CANDIDATES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")

@@ -45,10 +45,10 @@ import math
 import numpy as np
 import pandas as pd
 
-from ..engine.respondent_tables import MAIN_MAPPING, RespondentTables
 from ..errors import ConfigError
 from ..populations.perturb import ProfileSet
 from ..profiles.mappings import build_profiles
+from ..read.respondent_tables import MAIN_MAPPING, RespondentTables
 from ..responses.samples import aggregate_samples, with_samples
 from ..tables import PARAMS
 from .audit import (

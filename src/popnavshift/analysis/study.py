@@ -1,7 +1,7 @@
 """One study's analysis: the main grid's tables → every section of the report, as tables.
 
 ``analyse(runs, pedestrians)`` computes, from the main grid
-(:func:`popnavshift.engine.folder.main_grid`), the noise floor, no-robot checks, paired
+(:func:`popnavshift.read.folder.main_grid`), the noise floor, no-robot checks, paired
 delays, cell metrics, Table I, Kendall τ, Table II and the trade-off, Fig. 2's change
 in delay, population sensitivity by width, and the paper's findings on our numbers. A
 section that cannot be computed on the study given (too few populations or controllers,
@@ -17,8 +17,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..engine.folder import is_half, split_halves
 from ..populations.identity import ARMS, MATCHED_PAIR, PopulationSpec
+from ..read.folder import is_half, split_halves
 from ..tables import NO_ROBOT
 from .delay import cell_metrics, paired_delays
 from .findings import WIDTH_SCENES, Finding, available_findings

@@ -30,8 +30,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..engine.folder import StudyFolder, main_part
 from ..populations.identity import spec_of
+from ..read.folder import StudyFolder
 from ..tables import NO_ROBOT
 from .calibrate import calibration_table
 from .evidence import complete_design, test_comparisons
@@ -55,10 +55,11 @@ PREFIX = "evidence_"
 def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000,
                     level: float = LEVEL) -> tuple[dict[str, pd.DataFrame], dict[str, str]]:
     """Every evidence table of the study (see the module doc) and why any is missing."""
-    main = main_part(study)
+    main = study.main_part()
     if main is None:
-        return {}, {"evidence": "the manifest names no study part"}
-    populations, backends, mappings = main
+        return {}, {"evidence": "the study has no main part (name one `main` or declare "
+                                "`role: main`)"}
+    populations, backends, mappings = main[1].populations, main[1].backends, main[1].mappings
     runs = study.runs[study.runs["backend"].isin(backends)
                       & study.runs["mapping"].isin(mappings)]
     peds = study.pedestrians[study.pedestrians["backend"].isin(backends)

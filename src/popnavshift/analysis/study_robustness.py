@@ -1,9 +1,9 @@
 """The robustness parts of a study (paper §IV-C, §V-D, §V-E) as tables.
 
-Each part whose role (:meth:`popnavshift.engine.study.Study.role`) is one of
+Each part whose role (:meth:`popnavshift.design.study.Study.role`) is one of
 :data:`ROLE_TABLES` (``mapping``, ``structure``, ``backend``, ``respondent``), whatever
 its name, is selected from the runs table by its own episodes, populations,
-backends and profile sets (:func:`popnavshift.engine.folder.part_runs`) and analysed with
+backends and profile sets (:func:`popnavshift.read.folder.part_runs`) and analysed with
 :mod:`popnavshift.analysis.robustness`; parts repeated on extra seed sets give the
 spread of their rates. Every table of profile sets carries the sets' columns of the
 runs table (``profile_base``, ``perturbation``, ``perturbation_arg``) beside their
@@ -17,8 +17,8 @@ from collections.abc import Callable
 import numpy as np
 import pandas as pd
 
-from ..engine.folder import StudyFolder, part_runs
 from ..populations.perturb import with_profile_set_columns
+from ..read.folder import StudyFolder, part_runs
 from ..tables import PROFILE_SET_COLUMNS
 from .delay import cell_metrics, paired_delays
 from .robustness import agreement_with, backend_rates, matched_rates, rates_by_set

@@ -65,8 +65,8 @@ def audit(
     """
     from ..analysis.audit import ANSWER_TARGETS
     from ..analysis.audit_verdict import MIN_PERMUTATIONS, audit_tables
-    from ..engine.respondent_tables import read_respondent_tables
-    from ..engine.store import check_study_folder
+    from ..read.checks import check_study_folder
+    from ..read.respondent_tables import read_respondent_tables
 
     if permutations < MIN_PERMUTATIONS:
         raise ConfigError(f"--permutations {permutations}: expected at least "

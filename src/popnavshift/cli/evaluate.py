@@ -76,11 +76,11 @@ def evaluate(
 
     Example: popnavshift evaluate my_pkg.controller:MyBehavior --study quick
     """
+    from ..controller_ids import controller_id
     from ..engine.lock import study_lock
     from ..engine.ownership import claim_folder
     from ..evaluate import BASELINES, make_card
     from ..evaluate import evaluate as run_evaluation
-    from ..sim.controllers.registry import controller_id
     from .app import folder
 
     check_workers(workers)
@@ -168,8 +168,8 @@ MADE_STUDY = Path("study")  # where `make run` writes the paper study
 def _baseline_study(name: str | None):
     """The study to evaluate against and its default folder: the one named, else the
     study `make run` left in ./study (its manifest holds the configuration), else quick."""
-    from ..engine.store import read_manifest
-    from ..engine.study import load_study, study_from_dict
+    from ..design.study import load_study, study_from_dict
+    from ..read.checks import read_manifest
 
     manifest = MADE_STUDY / "manifest.json"
     if name is None and manifest.exists():

@@ -23,7 +23,8 @@ def _settings(personas: dict[str, Any] | None = None, respondent: dict[str, Any]
     naming the option), the rest as given (``None``: the default)."""
     from pydantic import ValidationError
 
-    from ..pipeline import PersonaSource, PopulationSettings, RespondentSpec
+    from ..design.specs import PersonaSource, RespondentSpec
+    from ..pipeline import PopulationSettings
 
     def model(cls, given: dict[str, Any]):
         try:

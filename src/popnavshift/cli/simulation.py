@@ -70,10 +70,10 @@ def _rebuild(folder: Path, episode: str, population: str, mapping: str, controll
              backend: str, seed: int, record: bool = False):
     """Simulate one run of the study in ``folder`` (its populations are built with the
     default settings if missing) by :func:`popnavshift.engine.rebuild.rebuild_run`."""
+    from ..design.study import Study
     from ..engine.lock import study_lock
     from ..engine.rebuild import population_members, rebuild_run
     from ..engine.runner import population_settings, run_stages
-    from ..engine.study import Study
     from ..episodes.specs import get_episode
     from ..errors import InputError, UnknownNameError
     from ..pipeline import read_table
@@ -101,7 +101,7 @@ def _rebuild(folder: Path, episode: str, population: str, mapping: str, controll
 
 def _controller(name: str, params: dict[str, Any]) -> str:
     """The controller id of ``name`` with ``params`` (``none``: the no-robot baseline)."""
-    from ..sim.controllers.registry import controller_id
+    from ..controller_ids import controller_id
 
     if name == "none":
         if params:

@@ -44,8 +44,8 @@ def plan(
     tables/evidence_power.csv, measured on its own replicate curve and nulls): run a pilot,
     then plan the real study with --from, e.g. `popnavshift plan paper --from study-pilot`.
     """
-    from ..engine.plan import count_runs
-    from ..engine.study import load_study
+    from ..design.plan import count_runs
+    from ..design.study import load_study
     from ..engine.validate import validate_study
     from ..episodes.specs import all_episodes
 
@@ -184,7 +184,7 @@ def calibrate(
     Example: `popnavshift calibrate study`.
     """
     from ..analysis.calibrate import TESTS
-    from ..engine.store import check_study_folder
+    from ..read.checks import check_study_folder
 
     check_study_folder(study_dir)
     cal = _calibration(study_dir, fresh)
@@ -246,10 +246,10 @@ def _calibration(study_dir: Path, fresh: bool):
         if set(COLUMNS) <= set(table.columns):  # a report of an older version: recompute
             return table
     from ..analysis.study_evidence import evidence_tables
-    from ..engine.folder import read_study_folder
+    from ..read.folder import open_study
 
     with console.status("running the placebos on the study's nulls…"):
-        tables, _ = evidence_tables(read_study_folder(study_dir))
+        tables, _ = evidence_tables(open_study(study_dir))
     return tables.get("evidence_calibration")
 
 
@@ -299,9 +299,9 @@ def run(
     again: finished work is kept and verified, the rest is done, and the tables come
     out identical to an uninterrupted run.
     """
+    from ..design.study import load_study
     from ..engine.lock import study_lock
     from ..engine.ownership import claim_folder
-    from ..engine.study import load_study
     from ..engine.validate import validate_study
     from ..episodes.specs import all_episodes
 
@@ -366,7 +366,7 @@ def report_cmd(
 
 
 def _write_report(study_dir: Path, n_boot: int = 1000) -> None:
-    from ..engine.store import check_study_folder
+    from ..read.checks import check_study_folder
     from ..report.build import build_report
 
     check_study_folder(study_dir)

@@ -13,10 +13,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from ..design.study import Study
 from ..errors import ConfigError
 from ..io import write_json
 from .lock import LOCK_NAME
-from .study import Study
 
 #: the study a folder belongs to: written by the first run, before any stage
 MARK = "study.json"

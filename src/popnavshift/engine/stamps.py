@@ -1,7 +1,7 @@
 """Code stamps: which code a run executes, so that edited code is never reused.
 
 A batch's id hashes the code stamps of the controllers it runs
-(:func:`popnavshift.engine.plan.batches`), and the compacted tables record them
+(:func:`popnavshift.engine.batches.batches`), and the compacted tables record them
 (:meth:`popnavshift.engine.store.RunStore.carried`): a change to the simulator or
 to a controller's module reruns exactly the runs that execute it.
 """

@@ -29,9 +29,9 @@ from ..analysis import cell_metrics, paired_delays
 from ..analysis.ranked import RANKED_NAMES
 from ..analysis.summary import OUTCOMES
 from ..analysis.verdicts import clopper_pearson
-from ..engine.study import Study
+from ..controller_ids import controller_id, parse_controller_id
+from ..design.study import Study
 from ..sim.controllers import CONTROLLERS
-from ..sim.controllers.registry import controller_id, parse_controller_id
 from ..tables import NO_ROBOT, RUN_KEY
 from .run import BASELINES, EVALUATE_DIR, Evaluation, evaluate, make_card, slug
 

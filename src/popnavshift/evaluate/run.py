@@ -9,7 +9,7 @@
    which reuses every finished baseline and no-robot run;
 3. plans the controller's runs on the study's evaluated part (``main``) as batches
    of their own, with the batch ids of ``popnavshift run``
-   (:func:`popnavshift.engine.plan.batches`): a batch id hashes its run keys, so
+   (:func:`popnavshift.engine.batches.batches`): a batch id hashes its run keys, so
    these never change the baseline batches, the stamp of the populations and
    episodes, and the code they run (the controller's module and the simulator,
    :func:`popnavshift.engine.stamps.run_code_stamp`), so edited code is run again.
@@ -37,12 +37,13 @@ import pandas as pd
 
 from ..analysis import episode_cells
 from ..analysis.replicates import seed_sets
+from ..controller_ids import controller_id, parse_controller_id
+from ..design.plan import plan_study
+from ..design.study import Study
 from ..engine.batch_plan import plan_batches, run_plan
-from ..engine.plan import plan_study
 from ..engine.rebuild import rebuild_run
 from ..engine.runner import run_study
 from ..engine.store import RunStore
-from ..engine.study import Study
 from ..engine.worker import Context
 from ..episodes.specs import all_episodes
 from ..errors import ConfigError, InputError
@@ -52,7 +53,6 @@ from ..paper import PAPER_CONTROLLERS
 from ..pipeline import read_table
 from ..sim.check import ControllerContractError, check_controller
 from ..sim.controllers import CONTROLLERS
-from ..sim.controllers.registry import controller_id, parse_controller_id
 from ..tables import NO_ROBOT, RUN_KEY
 from ..version import __version__
 from ..viz.replay import render_svg, run_outcome
@@ -141,8 +141,7 @@ def evaluate(
     factory = CONTROLLERS.make(identity)
     status = check(factory) if run_check else "skipped"
     say(f"controller {identity}: contract check {status}")
-    part_name = "main" if "main" in study.parts else next(iter(study.parts))
-    part = study.parts[part_name]
+    part_name, part = study.require_main()
     base_ids = tuple(b for b in dict.fromkeys(baselines) if b != identity)
     if not base_ids:
         raise ConfigError("evaluate needs at least one baseline other than the controller")

@@ -1,6 +1,6 @@
 """Stage 9: a study folder → every table, figure and replay of the report, then the page.
 
-``build_report(folder)`` reads the study (:mod:`popnavshift.engine.folder`), analyses
+``build_report(folder)`` reads the study (:mod:`popnavshift.read.folder`), analyses
 its main grid, its evidence (the answer: rates against their nulls), its respondents'
 answers (the audit) and its robustness parts (:mod:`popnavshift.analysis`), writes the
 tables as CSV, draws the figures, re-simulates a few illustrative runs as replays
@@ -22,10 +22,10 @@ from ..analysis.audit_verdict import audit_tables
 from ..analysis.study import analyse
 from ..analysis.study_evidence import evidence_tables, with_null_rates
 from ..analysis.study_robustness import robustness_tables
-from ..engine.folder import main_grid, read_study_folder
-from ..engine.respondent_tables import read_respondent_tables
 from ..hashing import digest
 from ..io import write_atomic, write_json, write_text
+from ..read.folder import main_grid, open_study
+from ..read.respondent_tables import read_respondent_tables
 from ..version import __version__
 from .answer_figures import write_answer_figures
 from .blocks import TABLES_DIR, csv_path
@@ -89,7 +89,7 @@ def build_report(folder: Path, *, rng_seed: int = 0, n_boot: int = 1000, replays
     step = progress or (lambda _: None)
     settings = {"rng_seed": rng_seed, "n_boot": n_boot, "replays": replays}
     step("reading the study")
-    study = read_study_folder(Path(folder))
+    study = open_study(Path(folder))
     out = study.folder / REPORT_DIR
     runs, peds, selection = main_grid(study)
     step("the paper's tables")

@@ -18,7 +18,7 @@ from typing import Any
 from jinja2 import Environment, PackageLoader
 
 from ..analysis.study import Analysis
-from ..engine.folder import StudyFolder
+from ..read.folder import StudyFolder
 from .answer import answer_section, ranks_section
 from .audit_section import answer_flag, audit_banner, audit_section
 from .blocks import Section

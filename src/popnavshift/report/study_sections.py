@@ -12,9 +12,9 @@ from typing import Any
 import pandas as pd
 
 from ..analysis.study import Analysis
-from ..engine.folder import StudyFolder
 from ..populations.build import population_order
 from ..populations.identity import NULL_KINDS, PopulationSpec, spec_of
+from ..read.folder import StudyFolder
 from .blocks import Cell, Section, figure, fmt, para, pct, table
 from .figures import controller_label, pop_label
 

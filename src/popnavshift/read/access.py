@@ -16,7 +16,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from .errors import ConfigError, InputError, UnknownNameError
+from ..design.plan import plan_study
+from ..errors import ConfigError, InputError, UnknownNameError
+from .folder import open_study
 
 TABLES = ("runs", "pedestrians")
 
@@ -59,25 +61,22 @@ def _with(rows: pd.DataFrame, extra: list[pd.DataFrame], key: list[str]) -> pd.D
 
 
 def part_run_ids(folder: Path, part: str) -> set[str]:
-    """``run_id`` of every run that study part ``part`` plans."""
-    # lazy: `import popnavshift` (which imports this module) must not load the engine
-    # and navground; only a part selection needs them
-    from .engine.plan import plan_study
-    from .engine.study import study_from_dict
-
-    manifest, episodes = folder / "manifest.json", folder / "episodes.parquet"
-    for needed in (manifest, episodes):
-        if not needed.is_file():
-            raise InputError(f"{needed}: not found", hint="run the study first (popnavshift run)")
-    config = json.loads(manifest.read_text("utf-8")).get("study_config")
-    if not config:
+    """``run_id`` of every run that study part ``part`` plans (the study as the folder
+    stored it, :func:`.folder.open_study`)."""
+    opened = open_study(folder)
+    manifest, episodes = folder / "manifest.json", opened.episodes
+    if not manifest.is_file():
+        raise InputError(f"{manifest}: not found", hint="run the study first (popnavshift run)")
+    if episodes is None:
+        raise InputError(f"{folder / 'episodes.parquet'}: not found",
+                         hint="run the study first (popnavshift run)")
+    spec = opened.study
+    if spec is None:
         raise InputError(f"{manifest}: no study_config to find the parts in")
-    spec = study_from_dict(config, f"{manifest} study_config")
     if part not in spec.parts:
         raise UnknownNameError("study part", part, spec.parts)
     only = spec.model_copy(update={"parts": {part: spec.parts[part]}})
-    grid = pd.read_parquet(episodes).itertuples(index=False)
-    return {run.id for run in plan_study(only, grid)}
+    return {run.id for run in plan_study(only, episodes.itertuples(index=False))}
 
 
 def results(study: str | Path) -> dict[str, pd.DataFrame]:

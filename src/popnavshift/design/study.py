@@ -24,16 +24,16 @@ from pydantic import (
     model_validator,
 )
 
+from ..controller_ids import controller_id
 from ..errors import ConfigError, UnknownNameError
 from ..hashing import digest
 from ..paper import PAPER_CONTROLLERS, PAPER_POPULATIONS
-from ..pipeline import PersonaSource, RespondentSpec
 from ..populations.build import POPULATIONS, SPLIT_HALVES, is_known, known
 from ..populations.identity import MATCHED_PAIR, SIZED_SOURCE, PopulationSpec, index_of
 from ..populations.nulls import null_populations
 from ..populations.perturb import ProfileSet
-from ..sim.controllers.registry import controller_id
 from ..strict import Count, Names, Number, Seed, Strict, Unique
+from .specs import PersonaSource, RespondentSpec
 from .study_yaml import parse_study_yaml
 
 SCENES = ("sidewalk", "head_on", "crossing", "bottleneck", "obstruction")
@@ -234,21 +234,33 @@ class Study(Strict):
 
     def role(self, name: str) -> str:
         """The analysis role of part ``name``: declared, else its name when that is a role
-        (as in the built-in studies), else its content. Without a ``main`` part the first
-        part is the main one."""
+        (as in the built-in studies), else its content (:func:`role_from_content`, which
+        never gives ``main``: the main part is declared or named, never found by position)."""
         part = self.parts[name]
         if part.role is not None:
             return part.role
         if name in PART_ROLES:
             return name
-        roles = [p.role or (n if n in PART_ROLES else None) for n, p in self.parts.items()]
-        if "main" not in roles and name == next(iter(self.parts)):
-            return "main"
         return role_from_content(part)
 
     def part_with(self, role: str) -> tuple[str, Part] | None:
         """The (name, part) of the part with ``role``, or None."""
         return next(((n, p) for n, p in self.parts.items() if self.role(n) == role), None)
+
+    def main_part(self) -> tuple[str, Part] | None:
+        """The (name, part) of the main part (the paper's design: Table I, the headline,
+        ``evaluate``'s grid): the part declared ``role: main``, else the part named
+        ``main``; None when there is neither."""
+        return self.part_with("main")
+
+    def require_main(self) -> tuple[str, Part]:
+        """:meth:`main_part`, or a ConfigError saying how to declare one."""
+        main = self.main_part()
+        if main is None:
+            raise ConfigError(f"{self.where} has no main part (parts: {', '.join(self.parts)})",
+                              hint="name the part with the study's grid `main`, or declare "
+                                   "`role: main` on it")
+        return main
 
     def population_specs(self) -> dict[str, PopulationSpec]:
         """Every population the study's parts run, by name, as declared (a condition or a
@@ -262,6 +274,15 @@ class Study(Strict):
             self.population_specs()
         except ValueError as err:
             raise ValueError(f"parts: {err}") from None
+        return self
+
+    @model_validator(mode="after")
+    def _main_is_not_a_null(self) -> Study:
+        main = self.main_part()
+        if main is not None and main[1].null_design is not None:
+            raise ValueError(f"parts.{main[0]}: a part with a null design (its populations "
+                             "are null replicates) cannot be the main part; declare "
+                             "`role: other` on it, or give the main part another name")
         return self
 
     @model_validator(mode="after")
