@@ -48,3 +48,22 @@ def reported_study(tmp_path_factory) -> Path:
     from report_study import run_and_report
 
     return run_and_report(tmp_path_factory.mktemp("reported"))
+
+
+@pytest.fixture(scope="session")
+def carded(finished, tmp_path_factory) -> Path:
+    """The finished tiny study with the robustness card of `reactive` (20 resamples),
+    evaluated once; its study file is ``../tiny.yaml``. Tests copy it before changing it."""
+    import shutil
+
+    from popnavshift.engine.ownership import claim_folder
+    from popnavshift.engine.study import load_study
+    from popnavshift.evaluate import evaluate, make_card
+
+    root = tmp_path_factory.mktemp("carded")
+    folder = root / "s"
+    shutil.copytree(finished, folder)
+    study = load_study(str(tiny_study(root)))
+    claim_folder(folder, study, force=None)
+    make_card(evaluate("reactive", study, folder, workers=1, show_progress=False), n_boot=20)
+    return folder

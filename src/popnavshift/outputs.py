@@ -22,7 +22,7 @@ from collections.abc import Callable
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-from .errors import InputError
+from .errors import ConfigError, InputError
 from .io import UMASK, read_json_object, write_json
 
 
@@ -154,6 +154,24 @@ def staging_folder(target: Path) -> Path:
     tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
     os.chmod(tmp, 0o777 & ~UMASK)
     return tmp
+
+
+def check_writable(folder: Path, what: str) -> None:
+    """ConfigError unless ``folder`` can be written in, or created: its nearest existing
+    ancestor is a folder where a file can be made (tried, and removed). Nothing is
+    created: a check before any work leaves no trace."""
+    folder = Path(folder)
+    existing = next(p for p in (folder, *folder.absolute().parents) if p.exists())
+    if not existing.is_dir():
+        raise ConfigError(f"{what}: {existing} is a file, not a folder",
+                          hint="choose another path")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".popnavshift-write-test-", dir=existing)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise ConfigError(f"{what}: {existing} is not writable ({exc.strerror or exc})",
+                          hint="choose another place or fix its permissions") from None
 
 
 def replace_folder(new: Path, target: Path) -> None:

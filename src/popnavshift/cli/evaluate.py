@@ -58,7 +58,8 @@ def evaluate(
     check: Annotated[
         bool, typer.Option(help="Run the controller contract checker first.")
     ] = True,
-    n_boot: Annotated[int, typer.Option(min=1, help="Bootstrap resamples for the CIs.")] = 1000,
+    n_boot: Annotated[int, typer.Option(min=1, max=100_000,
+                                        help="Bootstrap resamples for the CIs.")] = 1000,
     seed: Annotated[int, typer.Option(min=0, help="Seed of the bootstrap.")] = 0,
     safety_threshold: Annotated[
         float | None,
@@ -88,7 +89,6 @@ def evaluate(
     s, default_dir = _baseline_study(study)
     if out is not None:  # before anything is made: never the study's folder, and writable
         check_out(out, study_dir or default_dir)
-        folder(out)
     base = folder(study_dir or default_dir)
     params = parse_params(param)
     identity = controller_id(controller, params) if params else controller
@@ -130,7 +130,8 @@ def compare(
     workers: Annotated[
         int, typer.Option("--workers", "-w", min=1, max=MAX_WORKERS, help="Worker processes.")
     ] = 2,
-    n_boot: Annotated[int, typer.Option(min=1, help="Bootstrap resamples of the cards.")] = 1000,
+    n_boot: Annotated[int, typer.Option(min=1, max=100_000,
+                                        help="Bootstrap resamples of the cards.")] = 1000,
     seed: Annotated[int, typer.Option(min=0, help="Seed of the cards' bootstrap.")] = 0,
     safety_threshold: Annotated[
         float | None,
@@ -163,7 +164,6 @@ def compare(
     s, default_dir = _baseline_study(study)
     page = out or (study_dir or default_dir) / "compare" / "compare.html"
     check_page(page)  # before any work: a page that can be written, over nothing else
-    folder(page.parent)
     base = folder(study_dir or default_dir)
     with study_lock(base):  # cards are evaluated into the baseline folder: one writer
         claim_folder(base, s, force=None, option="--study-dir")

@@ -176,7 +176,8 @@ def calibrate(
     cal = _calibration(study_dir, fresh)
     if cal is None or cal.empty:
         console.print(f"{say(study_dir)} ran no null replicates: nothing to calibrate (a study "
-                      "needs a `null_design` part, as the paper study has).", highlight=False)
+                      "needs a `null_design` part, as the paper study has).", highlight=False,
+                      soft_wrap=True)
         raise typer.Exit(1)
     per_comp = sorted(set(cal["comparison"]) - {"all", "table"}) if by_comparison else []
     scopes = [x for x in ("table", *per_comp, "all") if (cal["comparison"] == x).any()]
@@ -350,14 +351,16 @@ def _run(s, target: Path, workers: int, executor: str, address: str | None,
             console.print(f"report is up to date: {say(target / 'report' / 'index.html')}")
         else:
             if report_.nothing_to_do:
-                console.print(f"rebuilding the report: {why}", highlight=False)
+                console.print(f"rebuilding the report: {say(why)}", highlight=False,
+                              soft_wrap=True)
             _write_report(target)
 
 
 @app.command("report")
 def report_cmd(
     study_dir: Annotated[Path, typer.Argument(help="A study folder written by `popnavshift run`.")],
-    n_boot: Annotated[int, typer.Option(min=1, help="Bootstrap resamples for the CIs.")] = 1000,
+    n_boot: Annotated[int, typer.Option(min=1, max=100_000,
+                                        help="Bootstrap resamples for the CIs.")] = 1000,
 ) -> None:
     """Write DIR/report/index.html with every table (CSV) and figure (PNG, SVG)."""
     from ..engine.lock import study_lock

@@ -19,19 +19,18 @@ from __future__ import annotations
 
 import hashlib
 import re
+from collections.abc import Sequence
 from functools import cache
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import pandas as pd
 
 from ..access import EVALUATE_DIR, EVALUATION, card_intact
 from ..errors import ConfigError
 from ..hashing import digest, sources_digest
+from ..outputs import check_writable
 from ..version import __version__
-
-if TYPE_CHECKING:
-    from .run import Evaluation
 
 
 def slug(identity: str) -> str:
@@ -49,8 +48,8 @@ def card_folder(base_folder: Path, identity: str) -> Path:
 def check_out(out: Path, base_folder: Path) -> None:
     """ConfigError unless ``out`` can hold a card beside the study in ``base_folder``:
     not the study folder nor a folder holding it (the card's ``runs.parquet`` would
-    replace the study's), not a file, and, outside the study's ``evaluate/``, empty or a
-    card folder already."""
+    replace the study's), inside the study folder only in its ``evaluate/``, not a file,
+    writable, and, outside the study folder, empty or a card folder already."""
     target, base = Path(out).resolve(), Path(base_folder).resolve()
     hint = "choose another --out, or leave it out for STUDY_DIR/evaluate/<controller>"
     if target == base or target in base.parents:
@@ -59,10 +58,31 @@ def check_out(out: Path, base_folder: Path) -> None:
     if target.exists() and not target.is_dir():
         raise ConfigError(f"--out {out} exists and is not a folder", hint=hint)
     inside = (base / EVALUATE_DIR) in target.parents
+    if base in target.parents and not inside:
+        raise ConfigError(f"--out {out} is inside the study folder {base_folder} but not in "
+                          f"its {EVALUATE_DIR}/ folder, where cards go", hint=hint)
     if target.is_dir() and not inside and not (target / EVALUATION).exists() and any(
             not p.name.startswith(".") for p in target.iterdir()):
         raise ConfigError(f"--out {out} is not empty and holds no card: its files could be "
                           "replaced", hint=hint)
+    check_writable(target, f"--out {out}")
+
+
+def check_card_settings(n_boot: object, seed: object, safety_threshold: object) -> None:
+    """ConfigError unless the card's settings are what the command line accepts: from
+    Python too, a bad value is refused before any work."""
+    def integer(v: object) -> bool:
+        return isinstance(v, int) and not isinstance(v, bool)
+
+    if not integer(n_boot) or not 1 <= n_boot <= 100_000:  # type: ignore[operator]
+        raise ConfigError(f"n_boot must be an integer from 1 to 100000; got {n_boot!r}")
+    if not integer(seed) or seed < 0:  # type: ignore[operator]
+        raise ConfigError(f"seed must be a non-negative integer; got {seed!r}")
+    if safety_threshold is not None and not (
+            isinstance(safety_threshold, int | float) and not isinstance(safety_threshold, bool)
+            and 0 <= safety_threshold <= 1):
+        raise ConfigError(f"safety_threshold must be a share from 0 to 1 or None; got "
+                          f"{safety_threshold!r}")
 
 
 @cache
@@ -80,14 +100,15 @@ def tables_digest(*tables: pd.DataFrame) -> str:
     return h.hexdigest()
 
 
-def card_identity(ev: Evaluation, *, n_boot: int, seed: int,
+def card_identity(controller: str, baselines: Sequence[str], config_hash: str,
+                  tables: tuple[pd.DataFrame, pd.DataFrame], *, n_boot: int, seed: int,
                   safety_threshold: float | None) -> dict[str, Any]:
-    """Everything the verdict of ``ev``'s card depends on (module doc), as ``card.json``
-    records it."""
-    return {"controller": ev.controller, "baselines": list(ev.baselines),
-            "config_hash": ev.study.config_hash(), "n_boot": n_boot, "seed": seed,
-            "safety_threshold": safety_threshold,
-            "runs": tables_digest(ev.runs, ev.pedestrians), "code": card_code()}
+    """Everything the verdict of ``controller``'s card depends on (module doc), as
+    ``card.json`` records it; ``tables``: the runs and pedestrians it is computed on."""
+    return {"controller": controller, "baselines": list(baselines),
+            "config_hash": config_hash, "n_boot": n_boot, "seed": seed,
+            "safety_threshold": safety_threshold, "runs": tables_digest(*tables),
+            "code": card_code()}
 
 
 #: how each part of a card's identity is named when it changed

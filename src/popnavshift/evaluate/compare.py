@@ -36,7 +36,7 @@ from ..errors import InputError
 from ..sim.controllers import CONTROLLERS
 from ..sim.controllers.registry import controller_id, parse_controller_id
 from ..tables import NO_ROBOT, RUN_KEY
-from .card_files import card_folder, card_identity, card_is_current
+from .card_files import card_folder, card_identity, card_is_current, check_card_settings
 from .run import BASELINES, evaluate, make_card
 
 COMPARE_METRICS: tuple[str, ...] = RANKED_NAMES  # every ranked metric, as the card
@@ -131,6 +131,7 @@ def compare(controllers: Sequence[str], study: Study, base_folder: Path, *, work
     compare them all on the union of their runs (module doc)."""
     say = log or (lambda _msg: None)
     ids = tuple(dict.fromkeys(controller_id(*parse_controller_id(c)) for c in controllers))
+    check_card_settings(n_boot, seed, safety_threshold)
     for c in (*ids, *baselines):  # every name must resolve before anything runs
         CONTROLLERS.make(c)
     evaluations, verdicts, cards = [], {}, {}
@@ -138,7 +139,8 @@ def compare(controllers: Sequence[str], study: Study, base_folder: Path, *, work
         out = card_folder(base_folder, c)
         ev = evaluate(c, study, base_folder, out, baselines=baselines, workers=workers,
                       show_progress=show_progress, log=say)
-        identity = card_identity(ev, n_boot=n_boot, seed=seed,
+        identity = card_identity(ev.controller, ev.baselines, study.config_hash(),
+                                 (ev.runs, ev.pedestrians), n_boot=n_boot, seed=seed,
                                  safety_threshold=safety_threshold)
         had = any((out / name).exists() for name in (CARD, "card.html", "card.png"))
         why = card_is_current(out, identity)

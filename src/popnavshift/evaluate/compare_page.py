@@ -25,7 +25,7 @@ from jinja2 import Environment, select_autoescape
 from ..analysis.ranked import names
 from ..errors import ConfigError, InputError
 from ..io import read_json_object
-from ..outputs import FileSet
+from ..outputs import FileSet, check_writable
 from .card import METRIC_LABELS
 from .card_page import png_bytes, population_panel
 from .compare import COMPARE_METRICS, Comparison
@@ -104,9 +104,10 @@ KIND = "popnavshift compare"
 
 
 def check_page(page: Path) -> None:
-    """ConfigError unless ``page`` (``--out``) can be written: an ``.html`` name, not a
-    folder, and none of its files (:data:`SUFFIXES` and the ``.json`` manifest) an existing
-    file that an earlier comparison, by its manifest, did not write."""
+    """ConfigError unless ``page`` (``--out``) can be written: an ``.html`` name in a
+    folder we may write (or create), not a folder, and none of its files
+    (:data:`SUFFIXES` and the ``.json`` manifest) an existing file that an earlier
+    comparison, by its manifest, did not write."""
     page = Path(page)
     hint = "choose another --out (default: STUDY_DIR/compare/compare.html)"
     if page.suffix != ".html":
@@ -126,6 +127,7 @@ def check_page(page: Path) -> None:
         if path.exists() and path.name not in ours:
             raise ConfigError(f"--out {page} would replace {path}, which no comparison wrote",
                               hint=hint + ", or move that file")
+    check_writable(page.parent, f"--out {page}")
 
 
 def write_comparison(comparison: Comparison, page: Path) -> dict[str, Path]:

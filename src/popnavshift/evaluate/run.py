@@ -58,7 +58,7 @@ from ..tables import NO_ROBOT, RUN_KEY
 from ..version import __version__
 from ..viz.replay import render_svg, run_outcome
 from .card import OUTCOME_LABELS, Card, card_tables
-from .card_files import card_folder, card_identity, check_out
+from .card_files import card_folder, card_identity, check_card_settings, check_out
 from .card_page import write_card
 from .export import table_text
 
@@ -249,7 +249,10 @@ def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0,
     intervals); ``safety_threshold``, when given, is a share of the controller's runs
     above which a collision kind or controller errors read unsafe whatever the baselines
     do."""
-    identity = card_identity(ev, n_boot=n_boot, seed=seed, safety_threshold=safety_threshold)
+    check_card_settings(n_boot, seed, safety_threshold)
+    identity = card_identity(ev.controller, ev.baselines, ev.study.config_hash(),
+                             (ev.runs, ev.pedestrians), n_boot=n_boot, seed=seed,
+                             safety_threshold=safety_threshold)
     n_sets = int(seed_sets(ev.runs).nunique())
     card = card_tables(ev.runs, ev.pedestrians, ev.controller, ev.baselines,
                        rng=np.random.default_rng(seed), n_boot=n_boot, seed_sets=n_sets,
