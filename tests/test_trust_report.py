@@ -23,20 +23,12 @@ from forked_cli import run_cli
 from popnavshift.access import report_intact
 from popnavshift.analysis.calibrate import COLUMNS
 from popnavshift.errors import InputError
-from popnavshift.io import write_csv, write_json
-from popnavshift.outputs import folder_hashes
+from popnavshift.io import write_csv
+from popnavshift.outputs import folder_hashes, write_output_manifest
 from popnavshift.report.build import build_report, report_is_current
 
 pytestmark = pytest.mark.slow  # a study reported once (~10 s)
-RUN = {"rng_seed": 0, "n_boot": 1000, "replays": 2}  # what `run` builds and checks
-
-
-@pytest.fixture(scope="module")
-def reported(finished, tmp_path_factory) -> Path:
-    folder = study_copy(finished, tmp_path_factory.mktemp("reported") / "s")
-    build_report(folder, **RUN)
-    assert report_is_current(folder, RUN) == ""
-    return folder
+RUN = {"rng_seed": 0, "n_boot": 1000, "replays": 2}  # what `run` builds and checks (conftest)
 
 
 def _first(folder: Path, pattern: str) -> Path:
@@ -57,8 +49,8 @@ DAMAGES = {
 
 
 @pytest.mark.parametrize("damage", list(DAMAGES))
-def test_a_report_not_as_written_is_named_and_never_read_back(reported, tmp_path, damage):
-    s = study_copy(reported, tmp_path / "s")
+def test_a_report_not_as_written_is_named_and_never_read_back(reported_tiny, tmp_path, damage):
+    s = study_copy(reported_tiny, tmp_path / "s")
     hurt, said = DAMAGES[damage]
     hurt(s)
     assert said in report_is_current(s, RUN)
@@ -66,8 +58,8 @@ def test_a_report_not_as_written_is_named_and_never_read_back(reported, tmp_path
         popnavshift.results(s)
 
 
-def test_run_rebuilds_a_damaged_report_with_one_line_saying_why(reported, tmp_path):
-    s = study_copy(reported, tmp_path / "s")
+def test_run_rebuilds_a_damaged_report_with_one_line_saying_why(reported_tiny, tmp_path):
+    s = study_copy(reported_tiny, tmp_path / "s")
     tables = table_hashes(s)
     yaml = str(s.parent / "tiny.yaml")
     proc = run_cli("run", yaml, "-o", str(s), "-w", "1")
@@ -82,8 +74,8 @@ def test_run_rebuilds_a_damaged_report_with_one_line_saying_why(reported, tmp_pa
     assert set(popnavshift.results(s)) >= {"controller_outcomes", "cell_metrics"}
 
 
-def test_a_report_killed_while_it_is_built_leaves_the_old_one_whole(reported, tmp_path):
-    s = study_copy(reported, tmp_path / "s")
+def test_a_report_killed_while_it_is_built_leaves_the_old_one_whole(reported_tiny, tmp_path):
+    s = study_copy(reported_tiny, tmp_path / "s")
     old = folder_hashes(s / "report")
     pid = os.fork()
     if pid == 0:  # pragma: no cover - the child: a build killed when half its files exist
@@ -121,17 +113,17 @@ def _calibration_table() -> pd.DataFrame:
     return pd.DataFrame(rows)[COLUMNS]
 
 
-def test_calibrate_prints_on_stdout_and_recomputes_a_table_not_as_written(reported, tmp_path):
+def test_calibrate_prints_on_stdout_and_recomputes_a_table_not_as_written(reported_tiny, tmp_path):
     """The report's calibration table is read when the report is intact (stdout holds the
     tables: `calibrate S > f` keeps them); changed since, it is computed again from the
     study (which here ran no null: exit 1, said); damaged beyond that, one line."""
-    s = study_copy(reported, tmp_path / "s")
+    s = study_copy(reported_tiny, tmp_path / "s")
     csv = s / "report" / "tables" / "evidence_calibration.csv"
     write_csv(_calibration_table(), csv)
     stamp = json.loads((s / "report" / "stamp.json").read_text())
-    write_json({**stamp, "files": {**stamp["files"], "tables/evidence_calibration.csv":
-                                   folder_hashes(s / "report")["tables/evidence_calibration.csv"]}},
-               s / "report" / "stamp.json")
+    files = {**stamp["files"], "tables/evidence_calibration.csv":
+             folder_hashes(s / "report")["tables/evidence_calibration.csv"]}
+    write_output_manifest(s / "report" / "stamp.json", {**stamp, "files": files})
     proc = run_cli("calibrate", str(s))
     assert proc.returncode == 0, proc.stderr
     assert "prediction t" in proc.stdout and "within" in proc.stdout

@@ -19,6 +19,7 @@ warning.
 
 from __future__ import annotations
 
+import os
 import warnings
 from pathlib import Path
 from typing import Any
@@ -49,9 +50,11 @@ def load(study: str | Path, part: str | None = "main", table: str = "runs", *,
     when the folder lacks the table or the manifest or one is damaged,
     :class:`UnknownNameError` for a part the study does not have.
     """
-    folder = Path(study)
-    if table not in TABLES:
+    folder = _folder(study)
+    if not isinstance(table, str) or table not in TABLES:
         raise ConfigError(f"table must be one of {', '.join(TABLES)}; got {table!r}")
+    if part is not None and not isinstance(part, str):
+        raise ConfigError(f"part must be the name of a study part, or None; got {part!r}")
     path = folder / f"{table}.parquet"
     if not path.is_file():
         raise InputError(f"{path}: not found", hint="run the study first (popnavshift run)")
@@ -64,6 +67,13 @@ def load(study: str | Path, part: str | None = "main", table: str = "runs", *,
     mine = rows[rows["run_id"].isin(ids)]
     episodes = set(mine["episode"])
     return _with(mine, [e[e["episode"].isin(episodes)] for e in extra], key).assign(part=part)
+
+
+def _folder(study: object) -> Path:
+    """A study folder given as a path (str or path-like): checked where it enters."""
+    if not isinstance(study, str | os.PathLike) or str(study) == "":
+        raise ConfigError(f"study must be the path of a study folder; got {study!r}")
+    return Path(study)
 
 
 def _parquet(path: Path, columns: list[str] | None = None) -> pd.DataFrame:
@@ -154,7 +164,7 @@ def results(study: str | Path) -> dict[str, pd.DataFrame]:
     ``evidence_power``, ``evidence_calibration``, ``reversals``, …: the CSVs of
     ``STUDY/report/tables``). Raises :class:`InputError` when the study has no report,
     or one that is not as its build wrote it (:func:`report_intact`)."""
-    folder = Path(study) / REPORT_DIR / "tables"
+    folder = _folder(study) / REPORT_DIR / "tables"
     hint = f"write the report: popnavshift report {study}"
     if not folder.is_dir():
         raise InputError(f"{folder}: not found", hint=hint)
@@ -182,15 +192,17 @@ def cards(study: str | Path) -> dict[str, dict[str, object]]:
     """Every robustness card of the study (``popnavshift evaluate``): folder name → its
     verdict (``card.json``) and tables (its CSVs) as DataFrames, under ``"verdict"`` and
     each table's name. Raises :class:`InputError` when the study folder does not exist or
-    a card is damaged or unfinished; a card made for another configuration of the study
-    is left out with a warning."""
-    root = Path(study)
+    a card is damaged or unfinished (a page or figure without its ``card.json``); a card
+    made for another configuration of the study is left out with a warning."""
+    root = _folder(study)
     if not root.is_dir():
         raise InputError(f"{root}: no such study folder",
                          hint="give the --study-dir of `popnavshift evaluate`")
     mine = config_hash(root)
     out: dict[str, dict[str, object]] = {}
-    for path in sorted((root / EVALUATE_DIR).glob(f"*/{CARD}")):
+    folders = {p.parent for name in (CARD, "card.html", "card.png")
+               for p in (root / EVALUATE_DIR).glob(f"*/{name}")}
+    for path in sorted(folder / CARD for folder in folders):  # a card, or an unfinished one
         doc, why = card_intact(path.parent)
         if why:
             who = doc.get("controller")

@@ -5,7 +5,8 @@ A reader takes such an output as a whole, so it is written as a whole. Each file
 which :func:`popnavshift.engine.ownership.clean_leftovers` removes after a killed
 writer); :meth:`FileSet.commit` removes the old manifest, renames the files into place
 and writes the new manifest last, with each file's sha256. The manifest is the commit
-marker: :func:`verify` names the file that is missing or changed since, and a reader
+marker, sealed by the digest of its own content: :func:`verify` names the file that is
+missing or changed since (:func:`read_output_manifest` the manifest itself), and a reader
 rebuilds the output (or refuses it) instead of taking it half-made. A folder that is
 one output as a whole (the report) is built in a temporary folder, hashed
 (:func:`folder_files`) and swapped in (:func:`replace_folder`).
@@ -23,6 +24,7 @@ from pathlib import Path, PurePosixPath
 from typing import Any
 
 from .errors import ConfigError, InputError
+from .hashing import digest
 from .io import UMASK, read_json_object, write_json
 
 
@@ -75,9 +77,7 @@ class FileSet:
             os.chmod(tmp, 0o666 & ~UMASK)
             os.replace(tmp, self.folder / name)
         self._staged.clear()
-        doc = {**record, "files": files}
-        write_json(doc, self.folder / self.manifest)
-        return doc
+        return write_output_manifest(self.folder / self.manifest, {**record, "files": files})
 
     def discard(self) -> None:
         """Remove the staged files (nothing under a final name was touched)."""
@@ -87,8 +87,9 @@ class FileSet:
 
 
 def read_output_manifest(path: Path) -> tuple[dict[str, Any], str]:
-    """The manifest at ``path`` and "", or {} and why it cannot be used: missing (the
-    output was never finished), damaged, or listing no files."""
+    """The manifest at ``path`` and "", or what it holds and why it cannot be used:
+    missing (the output was never finished), damaged, listing no files, or edited since
+    it was written (its ``digest``)."""
     path = Path(path)
     if not path.is_file():
         return {}, f"{path} is missing (it was not finished)"
@@ -98,7 +99,19 @@ def read_output_manifest(path: Path) -> tuple[dict[str, Any], str]:
         return {}, err.message
     if not isinstance(doc.get("files"), dict):
         return {}, f"{path} is damaged or of an older version (it lists no files)"
+    if doc.get("digest") != digest({k: v for k, v in doc.items() if k != "digest"}):
+        return doc, f"{path} changed since it was written"
     return doc, ""
+
+
+def write_output_manifest(path: Path, doc: dict[str, Any]) -> dict[str, Any]:
+    """Write the manifest ``doc`` (with its ``files``) to ``path`` atomically, sealed by the
+    digest of its own content (``digest``): an edit of the manifest itself is a change
+    :func:`read_output_manifest` names. Returns what was written."""
+    doc = {k: v for k, v in doc.items() if k != "digest"}
+    doc["digest"] = digest(doc)
+    write_json(doc, path)
+    return doc
 
 
 def safe_name(name: object) -> bool:

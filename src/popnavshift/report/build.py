@@ -29,7 +29,7 @@ from ..analysis.study_robustness import robustness_tables
 from ..engine.folder import StudyFolder, main_grid, read_study_folder
 from ..engine.respondent_tables import read_respondent_tables
 from ..hashing import digest, sources_digest
-from ..io import write_csv, write_json, write_text
+from ..io import write_csv, write_text
 from ..outputs import (
     folder_hashes,
     read_output_manifest,
@@ -37,6 +37,7 @@ from ..outputs import (
     replace_folder,
     staging_folder,
     verify,
+    write_output_manifest,
 )
 from ..version import __version__
 from .answer_figures import write_answer_figures
@@ -107,8 +108,8 @@ def build_report(folder: Path, *, rng_seed: int = 0, n_boot: int = 1000, replays
     out = staging_folder(target)
     try:
         _build(study, out, settings, step)
-        write_json({"stamp": report_stamp(study.folder, settings),
-                    "files": folder_hashes(out)}, out / STAMP)
+        write_output_manifest(out / STAMP, {"stamp": report_stamp(study.folder, settings),
+                                            "files": folder_hashes(out)})
         replace_folder(out, target)
     finally:
         if out.exists():
