@@ -163,7 +163,7 @@ def compare(
     check_workers(workers)
     s, default_dir = _baseline_study(study)
     page = out or (study_dir or default_dir) / "compare" / "compare.html"
-    check_page(page)  # before any work: a page that can be written, over nothing else
+    check_page(page, ours=out is None)  # before any work: writable, over nothing else
     base = folder(study_dir or default_dir)
     with study_lock(base):  # cards are evaluated into the baseline folder: one writer
         claim_folder(base, s, force=None, option="--study-dir")

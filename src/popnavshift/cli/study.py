@@ -201,22 +201,22 @@ def calibrate(
     unsure = checked[checked["status"] == "too few placebos to tell"]
     if bad.empty:
         stdout.print(f"[green]no verdict rule claims more than its nominal level[/] on this "
-                      f"study's placebos ({len(checked)} rules checked; every Clopper–Pearson "
-                      "interval reaches down to its nominal level).", highlight=False)
+                     f"study's placebos ({len(checked)} rules checked; every Clopper–Pearson "
+                     "interval reaches down to its nominal level).", highlight=False)
     else:
         stdout.print("[red]above its nominal level[/]: "
-                      + "; ".join(f"{say(r.test)}: {say(r.claim)}" for r in bad.itertuples()),
-                      highlight=False)
+                     + "; ".join(f"{say(r.test)}: {say(r.claim)}" for r in bad.itertuples()),
+                     highlight=False)
     if not unsure.empty:
         stdout.print("too few placebos to rule out twice the nominal rate for: "
-                      + "; ".join(f"{say(r.test)}: {say(r.claim)}" for r in unsure.itertuples())
-                      + " (more null replicates would tell; the test suite checks the rules on "
-                      "thousands of synthetic designs).", highlight=False)
+                     + "; ".join(f"{say(r.test)}: {say(r.claim)}" for r in unsure.itertuples())
+                     + " (more null replicates would tell; the test suite checks the rules on "
+                     "thousands of synthetic designs).", highlight=False)
     unchecked = sorted(set(TESTS) - set(checked["test"]))
     if unchecked:
         stdout.print("no placebo could make a claim for: "
-                      + "; ".join(f"{n} (it needs {TESTS[n].min_nulls + 1} null replicates)"
-                                  for n in unchecked) + ".", highlight=False)
+                     + "; ".join(f"{n} (it needs {TESTS[n].min_nulls + 1} null replicates)"
+                                 for n in unchecked) + ".", highlight=False)
 
 
 def _calibration(study_dir: Path, fresh: bool):

@@ -103,37 +103,38 @@ SUFFIXES: tuple[str, ...] = (".html", ".csv", ".md", ".tex", ".png")
 KIND = "popnavshift compare"
 
 
-def check_page(page: Path) -> None:
+def check_page(page: Path, *, ours: bool = False) -> None:
     """ConfigError unless ``page`` (``--out``) can be written: an ``.html`` name in a
     folder we may write (or create), not a folder, and none of its files
     (:data:`SUFFIXES` and the ``.json`` manifest) an existing file that an earlier
-    comparison, by its manifest, did not write."""
+    comparison, by its manifest, did not write (unless the folder is ``ours``: the study's
+    own ``compare/``, where a comparison of an older version left no manifest)."""
     page = Path(page)
     hint = "choose another --out (default: STUDY_DIR/compare/compare.html)"
     if page.suffix != ".html":
         raise ConfigError(f"--out must name an .html page, got {str(page)!r}",
                           hint=f"e.g. --out {page.with_suffix('.html')}")
     manifest = page.with_suffix(".json")
-    ours: set[str] = set()
+    written: set[str] = set()
     try:
         doc = read_json_object(manifest) if manifest.is_file() else {}
     except InputError:
         doc = {}
     if doc.get("kind") == KIND and isinstance(doc.get("files"), dict):
-        ours = {*doc["files"], manifest.name}
+        written = {*doc["files"], manifest.name}
     for path in (page.with_suffix(s) for s in (*SUFFIXES, ".json")):
         if path.is_dir():
             raise ConfigError(f"--out {page}: {path} is a folder", hint=hint)
-        if path.exists() and path.name not in ours:
+        if path.exists() and not ours and path.name not in written:
             raise ConfigError(f"--out {page} would replace {path}, which no comparison wrote",
                               hint=hint + ", or move that file")
     check_writable(page.parent, f"--out {page}")
 
 
 def write_comparison(comparison: Comparison, page: Path) -> dict[str, Path]:
-    """Write the page and its tables and figure as one set (module doc); format → path."""
+    """Write the page and its tables and figure as one set (module doc; the caller has
+    checked ``page``: :func:`check_page`); format → path."""
     page = Path(page)
-    check_page(page)
     shown = display_table(comparison.table)
     with FileSet(page.parent, page.with_suffix(".json").name) as files:
         paths = {"csv": files.add_text(page.with_suffix(".csv").name,
