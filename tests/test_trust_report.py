@@ -38,7 +38,8 @@ def _first(folder: Path, pattern: str) -> Path:
 DAMAGES = {
     "[]": (lambda s: (s / "report" / "stamp.json").write_text("[]"), "stamp.json is damaged"),
     "no stamp": (lambda s: (s / "report" / "stamp.json").unlink(), "stamp.json is missing"),
-    "{}": (lambda s: (s / "report" / "stamp.json").write_text('{"files": {}}'), "no stamp"),
+    "{}": (lambda s: (s / "report" / "stamp.json").write_text('{"files": {}}'),
+           "stamp.json changed since it was written"),
     "page": (lambda s: (s / "report" / "index.html").write_text("<p>replaced</p>"),
              "index.html changed since it was written"),
     "table": (lambda s: _first(s, "tables/*.csv").unlink(), ".csv is missing"),

@@ -234,18 +234,21 @@ def check_types(kind: str, name: str, factory: Callable, signature: inspect.Sign
 
 def _annotation(factory: Callable, annotation: Any) -> Any:
     """``annotation``, evaluated in the factory's module when it is a string (postponed
-    annotations, as ``typing.get_type_hints`` does); None when it cannot be."""
+    annotations, as ``typing.get_type_hints`` does); ``inspect.Parameter.empty`` (not
+    checked) when it cannot be."""
     if not isinstance(annotation, str):
         return annotation
     module = inspect.getmodule(factory)
     try:
         return eval(annotation, dict(vars(module)) if module else {})  # noqa: S307
     except Exception:  # a name the module does not hold at run time: not checked
-        return None
+        return inspect.Parameter.empty
 
 
 def _simple_types(annotation: Any) -> tuple[type, ...]:
-    """The simple types ``annotation`` allows; () when it is anything else."""
+    """The simple types ``annotation`` allows; () when it is anything else (or none)."""
+    if annotation is None or annotation is inspect.Parameter.empty:
+        return ()
     members = typing.get_args(annotation) if isinstance(
         annotation, types.UnionType) or typing.get_origin(annotation) is typing.Union else (
         annotation,)
