@@ -48,8 +48,8 @@ def test_simple_annotations_are_checked_others_left_to_the_factory():
             reg.make("t", **bad)
 
 
-def test_audit_refuses_a_negative_or_huge_seed_in_one_line(finished):
-    for seed in ("-1", str(2**40)):
+def test_audit_refuses_a_negative_seed_in_one_line(finished):
+    for seed in ("-1", "1.5"):
         assert_one_line_error(run_cli("audit", str(finished), "--seed", seed), "--seed")
 
 
