@@ -87,7 +87,7 @@ def carded_copy(carded, tmp_path_factory) -> Path:
     return study_copy(carded, tmp_path_factory.mktemp("fuzz_cards") / "s")
 
 
-@settings(FAST, max_examples=60)
+@settings(FAST, max_examples=40)
 @given(damage(CARD_FILES))
 def test_a_damaged_card_is_never_reused_nor_read_as_it_is(carded, carded_copy, hit):
     card, good = carded_copy / "evaluate" / "reactive", carded / "evaluate" / "reactive"
@@ -118,7 +118,7 @@ def reported_copy(reported_tiny, tmp_path_factory) -> Path:
     return study_copy(reported_tiny, tmp_path_factory.mktemp("fuzz_report") / "s")
 
 
-@settings(FAST, max_examples=60)
+@settings(FAST, max_examples=40)
 @given(damage(REPORT_FILES))
 def test_a_damaged_report_is_rebuilt_and_never_read_back_as_it_is(reported_tiny, reported_copy,
                                                                    hit):
@@ -145,7 +145,7 @@ odd = st.one_of(st.sampled_from(["main", None, "matched", "", "m\u0430in", ESCAP
                 st.text(max_size=5), st.integers(), st.lists(st.text(max_size=2), max_size=2))
 
 
-@settings(FAST, max_examples=60)
+@settings(FAST, max_examples=40)
 @given(st.one_of(st.none(), damage(STUDY_FILES)), odd,
        st.sampled_from(["runs", "pedestrians", "profiles", 3]), st.booleans(),
        st.sampled_from(["load", "results", "cards"]))
@@ -217,7 +217,7 @@ def compare_root(carded, tmp_path_factory) -> Path:
     return root
 
 
-@settings(FAST, max_examples=8)
+@settings(FAST, max_examples=5)
 @given(st.data())
 def test_compare_exits_0_or_2_in_one_line_and_never_changes_the_study(compare_root, data):
     s = compare_root / "s"
@@ -254,7 +254,7 @@ def calibrated(reported_tiny, tmp_path_factory) -> Path:
     return s
 
 
-@settings(FAST, max_examples=15)
+@settings(FAST, max_examples=10)
 @given(st.one_of(st.none(), damage(["report/tables/evidence_calibration.csv",
                                     "report/stamp.json"])),
        st.lists(st.sampled_from(["--by-comparison", "--fresh", "--no-fresh", "--bogus"]),
@@ -273,7 +273,7 @@ def test_calibrate_exits_0_1_or_2_in_one_line_and_never_changes_the_study(
         assert "prediction t" in proc.stdout
 
 
-@settings(FAST, max_examples=8)
+@settings(FAST, max_examples=6)
 @given(st.lists(st.tuples(st.sampled_from(["--seed", "--permutations", "--boot"]), numbers),
                 max_size=2), st.booleans())
 def test_audit_options_exit_0_1_or_2_in_one_line(finished, args, strict):
@@ -288,7 +288,7 @@ def test_audit_options_exit_0_1_or_2_in_one_line(finished, args, strict):
     assert table_hashes(finished) == tables
 
 
-@settings(FAST, max_examples=8)
+@settings(FAST, max_examples=6)
 @given(st.lists(st.tuples(st.sampled_from(["--seed", "--respondent-seed", "--matched-n",
                                            "--respondent"]),
                           st.one_of(numbers, st.sampled_from(["rule", "rul", "openai"]))),
