@@ -11,7 +11,8 @@ ROOT = Path(__file__).resolve().parents[1] / "src" / "popnavshift"
 
 #: bottom to top: a module may import its own layer's modules and lower layers only
 LAYERS: tuple[frozenset[str], ...] = (
-    frozenset({"errors", "version", "hashing", "redact", "registry", "progress", "io", "strict"}),
+    frozenset({"errors", "version", "hashing", "redact", "registry", "progress", "io", "strict",
+               "outputs"}),
     frozenset({"table_spec"}),
     frozenset({"tables", "paper", "controller_ids"}),
     frozenset({"personas", "episodes", "viz", "dictionary"}),

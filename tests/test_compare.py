@@ -51,7 +51,10 @@ def test_compare_writes_one_page_and_one_table_with_a_row_per_controller(quick):
     assert "HRVO: 0 runs reused, 40 to run" in first.stderr
     out = folder / "compare"
     assert sorted(p.name for p in out.iterdir()) == [
-        "compare.csv", "compare.html", "compare.md", "compare.png", "compare.tex"]
+        "compare.csv", "compare.html", "compare.json", "compare.md", "compare.png", "compare.tex"]
+    manifest = json.loads((out / "compare.json").read_text())
+    assert manifest["controllers"] == list(FOUR) and manifest["settings"]["n_boot"] == 100
+    assert set(manifest["files"]) == {f"compare.{x}" for x in ("csv", "html", "md", "png", "tex")}
     table = pd.read_csv(out / "compare.csv")
     assert list(table["controller"]) == list(FOUR)
     assert table["verdict"].notna().all() and (table["runs"] == 40).all()

@@ -162,14 +162,14 @@ import json
 from pathlib import Path
 from popnavshift.cli.study import calibrate
 from popnavshift.engine.runner import run_study
+from popnavshift.cli.app import stdout
 from popnavshift.design.study import load_study, study_from_dict
-from popnavshift.progress import console
 from popnavshift.report import build_report
 folder = Path({str(folder)!r})
 run_study(study_from_dict({study!r}), folder, workers=1, show_progress=False)
 build_report(folder, n_boot=20, replays=0)
-console.width = 200
-with console.capture() as printed:
+stdout.width = 200
+with stdout.capture() as printed:  # calibrate's tables are its output: stdout
     calibrate(folder)
 {inspect.getsource(paper_design)}
 print(json.dumps({{"calibrate": printed.get(), "paper": paper_design()}}))

@@ -110,6 +110,7 @@ def test_calibrate_prints_every_rules_false_positive_rate(study):
     for rule in ("prediction t", "exact permutation", "crossover test", "episode-only"):
         assert rule in text, rule
     assert "no verdict rule claims more than its nominal level" in text
+    assert "prediction t" in out.stdout  # the tables are the output: `calibrate S > f` keeps them
     empty = run_cli("calibrate", str(study / "nowhere"))
     assert empty.returncode == 2 and "Traceback" not in empty.stderr
 

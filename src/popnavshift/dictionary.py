@@ -66,6 +66,12 @@ tables = popnavshift.results("study")  # name → DataFrame, e.g. tables["eviden
 cards = popnavshift.cards("study")  # card folder → {"verdict": …, "safety_rates": …, …}
 ```
 
+What they read is checked against the manifest its writer left (`report/stamp.json`, each
+card's `card.json`: every file's sha256): a report or card that is damaged, unfinished or
+edited since it was written raises `popnavshift.errors.InputError` naming the file, as a
+damaged table or manifest does for `load`; a card or an evaluation made for another
+configuration of the study is left out with a warning.
+
 Nothing needs parsing out of an id or a label: `seed_set` says which episode draw a
 run used (the `…@s<k>` episodes); `profile_set` how its profiles were made (the `A~…`
 profile sets), spelt out as `profile_base` (the mapping), `perturbation` and

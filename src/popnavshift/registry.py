@@ -28,6 +28,8 @@ import functools
 import importlib
 import inspect
 import re
+import types
+import typing
 from collections.abc import Callable, Iterator
 from importlib.metadata import entry_points
 from typing import Any, Generic, TypeVar
@@ -189,7 +191,7 @@ def call_checked(kind: str, name: str, factory: Callable[..., T], kwargs: dict) 
     except (TypeError, ValueError):  # builtins without a signature: just call
         return factory(**kwargs)
     try:
-        signature.bind(**kwargs)
+        bound = signature.bind(**kwargs)
     except TypeError:
         accepted = [
             p
@@ -203,7 +205,63 @@ def call_checked(kind: str, name: str, factory: Callable[..., T], kwargs: dict) 
             f"{', '.join(accepted) or 'none'}",
             hint=f"did you mean {close[0]!r}?" if close else None,
         ) from None
+    check_types(kind, name, factory, signature, bound.arguments)
     return factory(**kwargs)
+
+
+#: the simple annotations a parameter's value is checked against (:func:`check_types`), and
+#: the words of a message
+_SIMPLE: dict[Any, str] = {int: "an integer", float: "a number", str: "a text",
+                           bool: "true or false", type(None): "null"}
+
+
+def check_types(kind: str, name: str, factory: Callable, signature: inspect.Signature,
+                given: dict[str, Any]) -> None:
+    """ConfigError when a value in ``given`` does not match its parameter's simple
+    annotation (``int``, ``float``, ``str``, ``bool``, ``None`` or a union of them: a YAML
+    date, a list or a boolean where a number is expected), here rather than deep in a
+    stage that already ran. Other annotations are the factory's to check."""
+    for param, value in given.items():
+        p = signature.parameters.get(param)
+        if p is None or p.kind is p.VAR_KEYWORD:
+            continue
+        allowed = _simple_types(_annotation(factory, p.annotation))
+        if allowed and not _matches(value, allowed):
+            words = " or ".join(dict.fromkeys(_SIMPLE[t] for t in allowed))
+            raise ConfigError(f"{kind} {name!r}: parameter {param!r} must be {words}; got "
+                              f"{value!r}")
+
+
+def _annotation(factory: Callable, annotation: Any) -> Any:
+    """``annotation``, evaluated in the factory's module when it is a string (postponed
+    annotations, as ``typing.get_type_hints`` does); ``inspect.Parameter.empty`` (not
+    checked) when it cannot be."""
+    if not isinstance(annotation, str):
+        return annotation
+    module = inspect.getmodule(factory)
+    try:
+        return eval(annotation, dict(vars(module)) if module else {})  # noqa: S307
+    except Exception:  # a name the module does not hold at run time: not checked
+        return inspect.Parameter.empty
+
+
+def _simple_types(annotation: Any) -> tuple[type, ...]:
+    """The simple types ``annotation`` allows; () when it is anything else (or none)."""
+    if annotation is None or annotation is inspect.Parameter.empty:
+        return ()
+    members = typing.get_args(annotation) if isinstance(
+        annotation, types.UnionType) or typing.get_origin(annotation) is typing.Union else (
+        annotation,)
+    members = tuple(type(None) if m is None else m for m in members)
+    return members if members and all(m in _SIMPLE for m in members) else ()
+
+
+def _matches(value: Any, allowed: tuple[type, ...]) -> bool:
+    if isinstance(value, bool):  # a bool is an int to Python, never to a study file
+        return bool in allowed
+    if isinstance(value, int) and float in allowed:
+        return True
+    return isinstance(value, tuple(t for t in allowed if t is not bool))
 
 
 def _signature(factory: Callable) -> inspect.Signature:

@@ -115,14 +115,14 @@ def comparisons(
     ctrl = _controllers(cells, controllers)
     pops = sorted({p for pair in pairs for p in pair})
     _check_names(pops, metrics, cells, tolerances)
-    ia = [pops.index(a) for a, _ in pairs]
-    ib = [pops.index(b) for _, b in pairs]
+    ia = np.array([pops.index(a) for a, _ in pairs], dtype=int)  # int even when empty
+    ib = np.array([pops.index(b) for _, b in pairs], dtype=int)
     done = completed_units(cells, ctrl).unstack("population").reindex(columns=pops)
     frames = []
     for metric in metrics:
         diffs = _diffs_by_population(cells, metric, ctrl).reindex(columns=pops)
         units = diffs.index.droplevel(["ctrl_1", "ctrl_2"])
-        both_done = done.reindex(units).eq(True).to_numpy()  # (n, n_pops)
+        both_done = done.reindex(units).eq(True).to_numpy(bool)  # (n, n_pops)
         d = diffs.to_numpy(float)
         n, k = d.shape[0], len(pairs)
         f = diffs.index.to_frame(index=False).iloc[np.tile(np.arange(n), k)]

@@ -31,7 +31,7 @@ def audit(
         "whose smallest p reaches 0.05 / 16 (16 answers tested).")] = 999,
     boot: Annotated[int, typer.Option(min=100, max=100_000,
                                       help="Bootstrap resamples of the intervals.")] = 1000,
-    seed: Annotated[int, typer.Option(help="Seed of the shuffles and resamples.")] = 0,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the shuffles and resamples.")] = 0,
     strict: Annotated[bool, typer.Option(
         "--strict", help="Exit with code 1 when a respondent is not usable (for scripts, CI).")
                       ] = False,

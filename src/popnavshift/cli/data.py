@@ -132,6 +132,9 @@ def describe(
     from ..tables import SPECS
 
     names = list(STUDY_TABLES)
+    if table is None and study is not None and not study.exists() and (
+            str(study).removesuffix(".parquet") in STUDY_TABLES):
+        study, table = None, str(study)  # `describe runs`: the table, not a folder
     if table is not None:
         name = table.removesuffix(".parquet")
         if name not in STUDY_TABLES:
@@ -139,7 +142,9 @@ def describe(
         names = [name]
     if study is not None:
         if not study.is_dir():
-            raise InputError(f"{study}: no such study folder")
+            raise InputError(f"{study}: no such study folder",
+                             hint="give a study folder, then optionally a table: "
+                             "popnavshift describe STUDY runs")
         names = [n for n in names if (study / SPECS[n].file).exists()]
         if not names:
             raise InputError(f"{study}: holds none of the table(s) {table or 'of a study'}")

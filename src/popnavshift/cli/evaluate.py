@@ -58,7 +58,8 @@ def evaluate(
     check: Annotated[
         bool, typer.Option(help="Run the controller contract checker first.")
     ] = True,
-    n_boot: Annotated[int, typer.Option(min=1, help="Bootstrap resamples for the CIs.")] = 1000,
+    n_boot: Annotated[int, typer.Option(min=1, max=100_000,
+                                        help="Bootstrap resamples for the CIs.")] = 1000,
     seed: Annotated[int, typer.Option(min=0, help="Seed of the bootstrap.")] = 0,
     safety_threshold: Annotated[
         float | None,
@@ -81,15 +82,17 @@ def evaluate(
     from ..engine.ownership import claim_folder
     from ..evaluate import BASELINES, make_card
     from ..evaluate import evaluate as run_evaluation
+    from ..evaluate.card_files import check_out
     from .app import folder
 
     check_workers(workers)
     s, default_dir = _baseline_study(study)
+    if out is not None:  # before anything is made: never the study's folder, and writable
+        check_out(out, study_dir or default_dir)
     base = folder(study_dir or default_dir)
     params = parse_params(param)
     identity = controller_id(controller, params) if params else controller
-    names = BASELINES if baselines is None else tuple(
-        b.strip() for b in baselines.split(",") if b.strip())
+    names = _baselines(baselines, BASELINES)
     with study_lock(base):  # the baseline study's folder gets runs and the card: one writer
         claim_folder(base, s, force=None, option="--study-dir")
         ev = run_evaluation(identity, s, base, out, baselines=names, workers=workers,
@@ -127,39 +130,60 @@ def compare(
     workers: Annotated[
         int, typer.Option("--workers", "-w", min=1, max=MAX_WORKERS, help="Worker processes.")
     ] = 2,
-    n_boot: Annotated[int, typer.Option(min=1, help="Bootstrap resamples of a new card.")] = 1000,
-    seed: Annotated[int, typer.Option(min=0, help="Seed of a new card's bootstrap.")] = 0,
+    n_boot: Annotated[int, typer.Option(min=1, max=100_000,
+                                        help="Bootstrap resamples of the cards.")] = 1000,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the cards' bootstrap.")] = 0,
+    safety_threshold: Annotated[
+        float | None,
+        typer.Option(min=0.0, max=1.0, help="As for evaluate: also read unsafe above this "
+                     "share of a controller's runs (off by default)."),
+    ] = None,
+    baselines: Annotated[
+        str | None,
+        typer.Option(help="Comma-separated controllers each card compares with "
+                     "(default: the built-in controllers)."),
+    ] = None,
 ) -> None:
     """Put the robustness cards of several controllers side by side: one page, one table.
 
     A controller without a card in STUDY_DIR/evaluate is evaluated first (cached runs
-    are reused); an existing card is read.
+    are reused); an existing card is read when it was made under the same rules
+    (--n-boot, --seed, --safety-threshold, --baselines, the study's configuration, its
+    runs and the code), and made again otherwise, with one line saying why.
 
     Example: popnavshift compare reactive early_yield robot_orca HRVO
     """
     from ..engine.lock import study_lock
     from ..engine.ownership import claim_folder
-    from ..errors import ConfigError
+    from ..evaluate import BASELINES
     from ..evaluate.compare import compare as run_compare
-    from ..evaluate.compare_page import write_comparison
+    from ..evaluate.compare_page import check_page, write_comparison
     from .app import folder
 
     check_workers(workers)
-    if out is not None and out.suffix != ".html":
-        raise ConfigError(f"--out must name an .html page, got {str(out)!r}",
-                          hint=f"e.g. --out {out.with_suffix('.html')}")
     s, default_dir = _baseline_study(study)
+    page = out or (study_dir or default_dir) / "compare" / "compare.html"
+    check_page(page, ours=out is None)  # before any work: writable, over nothing else
     base = folder(study_dir or default_dir)
     with study_lock(base):  # cards are evaluated into the baseline folder: one writer
         claim_folder(base, s, force=None, option="--study-dir")
         comparison = run_compare(controllers, s, base, workers=workers, n_boot=n_boot,
-                                 seed=seed, log=lambda msg: console.print(
+                                 seed=seed, safety_threshold=safety_threshold,
+                                 baselines=_baselines(baselines, BASELINES),
+                                 log=lambda msg: console.print(
                                      say(msg), highlight=False, soft_wrap=True))
         with console.status("writing the comparison…"):
-            paths = write_comparison(comparison, out or base / "compare" / "compare.html")
+            paths = write_comparison(comparison, page)
     console.print(f"page → {say(paths['html'])}\ntable → {say(paths['csv'])} "
                   f"(also {paths['md'].suffix} and {paths['tex'].suffix})", soft_wrap=True,
                   highlight=False)
+
+
+def _baselines(option: str | None, default: tuple[str, ...]) -> tuple[str, ...]:
+    """``--baselines a,b`` as names (the default when not given)."""
+    if option is None:
+        return default
+    return tuple(b.strip() for b in option.split(",") if b.strip())
 
 
 MADE_STUDY = Path("study")  # where `make run` writes the paper study

@@ -78,7 +78,7 @@ def plan(
     stdout.print("'distinct' is what a run executes: parts share identical runs.")
     stdout.print(_pending_text(target, pending), highlight=False)
     if advice is None:
-        stdout.print(f"power: no estimate yet ({say(pilot)} has no report). Run a "
+        stdout.print(f"power: no estimate yet ({say(no_power_why(pilot))}). Run a "
                       "pilot, e.g. `popnavshift run pilot` (the matched pair and its swap null "
                       "on 2 seed sets), then `popnavshift plan "
                       f"{say(study or 'paper')} --from study-pilot`.", highlight=False)
@@ -124,21 +124,31 @@ def advice_text(r) -> str:
             f"replicates (+{int(r.runs_needed):,} runs{minutes})")
 
 
+def no_power_why(pilot: Path) -> str:
+    """Why ``pilot`` gives no power advice, in words."""
+    power = pilot / "report" / "tables" / "evidence_power.csv"
+    if not (pilot / "report" / "index.html").is_file():
+        return f"{pilot} has no report"
+    if not power.is_file():
+        return (f"the report of {pilot} has no power table ({power.relative_to(pilot)}): "
+                "its study ran no null design to measure power against")
+    return (f"the power table of {pilot} is of an older version: write its report again "
+            f"(popnavshift report {pilot})")
+
+
 def power_advice(path: Path):
     """The power table a study's report wrote (None if there is none or it predates the
     current columns)."""
     import pandas as pd
+
+    from ..io import read_csv
 
     if not path.is_file():
         return None
     cols = ["comparison", "metric", "rule", "excess", "verdict", "limit", "seed_sets_needed",
             "nulls_needed", "runs_needed", "minutes_needed"]
     numbers = cols[3:4] + cols[6:]
-    try:
-        table = pd.read_csv(path)
-    except (ValueError, UnicodeDecodeError) as exc:  # pandas' ParserError is a ValueError
-        raise InputError(f"{path} is damaged (not a readable CSV: {exc})",
-                         hint="write the report again: popnavshift report FOLDER") from None
+    table = read_csv(path)
     if not set(cols) <= set(table.columns):
         return None
     table = table[cols]
@@ -181,6 +191,7 @@ def calibrate(
     headline table as the report decides it (all its rates together), then each test.
     Status: 'within' (the interval reaches down to the nominal level and rules out twice
     it), 'above nominal', or 'too few placebos to tell'. Exit 1 if the study ran no null.
+    The tables go to stdout (`popnavshift calibrate study > calibration.txt`).
     Example: `popnavshift calibrate study`.
     """
     from ..analysis.calibrate import TESTS
@@ -190,7 +201,8 @@ def calibrate(
     cal = _calibration(study_dir, fresh)
     if cal is None or cal.empty:
         console.print(f"{say(study_dir)} ran no null replicates: nothing to calibrate (a study "
-                      "needs a `null_design` part, as the paper study has).", highlight=False)
+                      "needs a `null_design` part, as the paper study has).", highlight=False,
+                      soft_wrap=True)
         raise typer.Exit(1)
     per_comp = sorted(set(cal["comparison"]) - {"all", "table"}) if by_comparison else []
     scopes = [x for x in ("table", *per_comp, "all") if (cal["comparison"] == x).any()]
@@ -207,50 +219,67 @@ def calibrate(
                        if r.kind == "false positive" else r.kind)
             t.add_row(f"{say(r.test)} ({say(r.rule)})", say(r.claim), f"{r.claims}/{r.placebos}",
                       rate, verdict)
-        console.print(t)
+        stdout.print(t)
     fp = cal[cal["comparison"].isin(["all", "table"]) & (cal["kind"] == "false positive")]
     bad = fp[fp["status"] == "above nominal"]
     checked = fp[fp["placebos"] > 0]
     unsure = checked[checked["status"] == "too few placebos to tell"]
     if bad.empty:
-        console.print(f"[green]no verdict rule claims more than its nominal level[/] on this "
-                      f"study's placebos ({len(checked)} rules checked; every Clopper–Pearson "
-                      "interval reaches down to its nominal level).", highlight=False)
+        stdout.print(f"[green]no verdict rule claims more than its nominal level[/] on this "
+                     f"study's placebos ({len(checked)} rules checked; every Clopper–Pearson "
+                     "interval reaches down to its nominal level).", highlight=False)
     else:
-        console.print("[red]above its nominal level[/]: "
-                      + "; ".join(f"{say(r.test)}: {say(r.claim)}" for r in bad.itertuples()),
-                      highlight=False)
+        stdout.print("[red]above its nominal level[/]: "
+                     + "; ".join(f"{say(r.test)}: {say(r.claim)}" for r in bad.itertuples()),
+                     highlight=False)
     if not unsure.empty:
-        console.print("too few placebos to rule out twice the nominal rate for: "
-                      + "; ".join(f"{say(r.test)}: {say(r.claim)}" for r in unsure.itertuples())
-                      + " (more null replicates would tell; the test suite checks the rules on "
-                      "thousands of synthetic designs).", highlight=False)
+        stdout.print("too few placebos to rule out twice the nominal rate for: "
+                     + "; ".join(f"{say(r.test)}: {say(r.claim)}" for r in unsure.itertuples())
+                     + " (more null replicates would tell; the test suite checks the rules on "
+                     "thousands of synthetic designs).", highlight=False)
     unchecked = sorted(set(TESTS) - set(checked["test"]))
     if unchecked:
-        console.print("no placebo could make a claim for: "
-                      + "; ".join(f"{n} (it needs {TESTS[n].min_nulls + 1} null replicates)"
-                                  for n in unchecked) + ".", highlight=False)
+        stdout.print("no placebo could make a claim for: "
+                     + "; ".join(f"{n} (it needs {TESTS[n].min_nulls + 1} null replicates)"
+                                 for n in unchecked) + ".", highlight=False)
 
 
 def _calibration(study_dir: Path, fresh: bool):
-    """The report's calibration table when the report is newer than the runs, else computed
-    from the study's tables (the same code the report runs)."""
-    import pandas as pd
-
+    """The report's calibration table when the report is intact (every file as its build
+    wrote it) and newer than the runs, else computed from the study's tables (the same code
+    the report runs), with one line saying why the report's could not be used."""
     from ..analysis.calibrate import COLUMNS
+    from ..io import read_csv
+    from ..read.access import report_intact
 
     csv = study_dir / "report" / "tables" / "evidence_calibration.csv"
     runs = study_dir / "runs.parquet"
-    if not fresh and csv.is_file() and csv.stat().st_mtime >= runs.stat().st_mtime:
-        table = pd.read_csv(csv)
-        if set(COLUMNS) <= set(table.columns):  # a report of an older version: recompute
+    if not fresh and csv.is_file() and runs.is_file() and (
+            csv.stat().st_mtime >= runs.stat().st_mtime):
+        why = report_intact(study_dir)
+        table = read_csv(csv) if not why else None
+        if table is not None and set(COLUMNS) <= set(table.columns):
+            _check_numbers(table, csv)
             return table
+        why = why or "the report's calibration table is of an older version"
+        console.print(f"computing the calibration again: {say(why)}", highlight=False,
+                      soft_wrap=True)
     from ..analysis.study_evidence import evidence_tables
     from ..read.folder import open_study
 
     with console.status("running the placebos on the study's nulls…"):
         tables, _ = evidence_tables(open_study(study_dir))
     return tables.get("evidence_calibration")
+
+
+def _check_numbers(table, path: Path) -> None:
+    """InputError unless the calibration's counts and rates are numbers."""
+    import pandas as pd
+
+    numbers = ("nominal", "placebos", "claims", "rate", "cp_low", "cp_high")
+    if not all(pd.api.types.is_numeric_dtype(table[c]) for c in numbers):
+        raise InputError(f"{path} is damaged (a count or rate that is not a number)",
+                         hint="write the report again: popnavshift report FOLDER")
 
 
 @app.command()
@@ -347,14 +376,16 @@ def _run(s, target: Path, workers: int, executor: str, address: str | None,
             console.print(f"report is up to date: {say(target / 'report' / 'index.html')}")
         else:
             if report_.nothing_to_do:
-                console.print(f"rebuilding the report: {why}", highlight=False)
+                console.print(f"rebuilding the report: {say(why)}", highlight=False,
+                              soft_wrap=True)
             _write_report(target)
 
 
 @app.command("report")
 def report_cmd(
     study_dir: Annotated[Path, typer.Argument(help="A study folder written by `popnavshift run`.")],
-    n_boot: Annotated[int, typer.Option(min=1, help="Bootstrap resamples for the CIs.")] = 1000,
+    n_boot: Annotated[int, typer.Option(min=1, max=100_000,
+                                        help="Bootstrap resamples for the CIs.")] = 1000,
 ) -> None:
     """Write DIR/report/index.html with every table (CSV) and figure (PNG, SVG)."""
     from ..engine.lock import study_lock

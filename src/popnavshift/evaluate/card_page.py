@@ -1,11 +1,13 @@
 """The population-robustness card as a figure (PNG) and one HTML page.
 
-``write_card(card, meta, out, svg)`` renders a :class:`~.card.Card` (the pure tables of
-:func:`~.card.card_tables`) with the replay SVG of its worst run, drawn elsewhere.
+``write_card(card, meta, files, svg)`` renders a :class:`~.card.Card` (the pure tables of
+:func:`~.card.card_tables`) with the replay SVG of its worst run, drawn elsewhere, into
+the card's :class:`~popnavshift.outputs.FileSet` (committed with the rest of the card).
 """
 
 from __future__ import annotations
 
+import io
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -16,7 +18,7 @@ from jinja2 import Environment, select_autoescape
 from markupsafe import Markup
 
 from ..analysis import METRICS, TOLERANCES
-from ..io import write_atomic, write_text
+from ..outputs import FileSet
 from ..populations.build import population_order
 from ..viz.style import controller_style
 from .card import METRIC_LABELS, N_WORST, Card
@@ -32,6 +34,7 @@ def card_figure(card: Card):
     import matplotlib  # lazy: only drawing the card needs matplotlib (slow to import)
 
     matplotlib.use("Agg")
+    matplotlib.rcParams["text.parse_math"] = False  # a label is data: "$" is no math
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(2, 2, figsize=(12, 8), constrained_layout=True)
@@ -44,13 +47,16 @@ def card_figure(card: Card):
     return fig
 
 
-def save_png(fig, path: Path, dpi: int = 110) -> Path:
-    """Write ``fig`` to ``path`` as PNG (atomically) and close it."""
+def png_bytes(fig, dpi: int = 110) -> bytes:
+    """``fig`` as PNG; the figure is closed."""
     import matplotlib.pyplot as plt
 
-    write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=dpi))
-    plt.close(fig)
-    return Path(path)
+    buffer = io.BytesIO()
+    try:
+        fig.savefig(buffer, format="png", dpi=dpi)
+    finally:
+        plt.close(fig)
+    return buffer.getvalue()
 
 
 def population_panel(ax, per_population: pd.DataFrame, metric: str, controllers: Sequence[str],
@@ -175,10 +181,11 @@ def _win_rows(card: Card) -> list[dict[str, Any]]:
     return w.to_dict("records")
 
 
-def write_card(card: Card, meta: dict[str, Any], out: Path, svg: str | None) -> tuple[Path, Path]:
-    """``out/card.png`` and ``out/card.html``; returns both paths."""
-    png = save_png(card_figure(card), Path(out) / "card.png")
-    return write_text(render_html(card, meta, png.name, svg), Path(out) / "card.html"), png
+def write_card(card: Card, meta: dict[str, Any], files: FileSet,
+               svg: str | None) -> tuple[Path, Path]:
+    """Stage ``card.png`` and ``card.html`` in ``files``; returns both final paths."""
+    png = files.add("card.png", lambda tmp: tmp.write_bytes(png_bytes(card_figure(card))))
+    return files.add_text("card.html", render_html(card, meta, png.name, svg)), png
 
 
 def _most_reversed(reversals: pd.DataFrame) -> dict | None:

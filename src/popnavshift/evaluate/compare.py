@@ -2,8 +2,10 @@
 
 Pipeline: ``compare(controllers, study, base_folder)`` evaluates each controller
 (:func:`.run.evaluate`: cached, so a controller already evaluated simulates nothing) and
-writes its card unless a card of the same study, baselines and runs is there (its
-``card.json`` is read instead); then ``compare_table`` (pure) puts every controller in one
+writes its card unless a current one is there: same identity (controller, baselines,
+study configuration, bootstrap resamples and seed, safety threshold, runs, code) and
+every file as written (:mod:`.card_files`); so cards made under other rules are never set
+side by side, they are made again. Then ``compare_table`` (pure) puts every controller in one
 table, on the union of their runs — the same episodes and populations for all:
 
 * the card's verdict label and safety findings;
@@ -16,9 +18,8 @@ table, on the union of their runs — the same episodes and populations for all:
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -31,9 +32,12 @@ from ..analysis.summary import OUTCOMES
 from ..analysis.verdicts import clopper_pearson
 from ..controller_ids import controller_id, parse_controller_id
 from ..design.study import Study
+from ..errors import InputError
+from ..read.access import CARD, card_intact
 from ..sim.controllers import CONTROLLERS
 from ..tables import NO_ROBOT, RUN_KEY
-from .run import BASELINES, EVALUATE_DIR, Evaluation, evaluate, make_card, slug
+from .card_files import card_folder, card_identity, card_is_current, check_card_settings
+from .run import BASELINES, evaluate, make_card
 
 COMPARE_METRICS: tuple[str, ...] = RANKED_NAMES  # every ranked metric, as the card
 LEVEL = 0.95
@@ -43,8 +47,8 @@ Log = Callable[[str], None]
 @dataclass
 class Comparison:
     """The compared controllers (in the order given), their table (:func:`compare_table`),
-    the per-population means behind the figure, each controller's card page and the
-    ``verdict`` object of its ``card.json``."""
+    the per-population means behind the figure, each controller's card page, the
+    ``verdict`` object of its ``card.json`` and the settings every card was made under."""
 
     controllers: tuple[str, ...]
     table: pd.DataFrame
@@ -53,6 +57,9 @@ class Comparison:
     verdicts: dict[str, dict[str, Any]]
     study: Study
     base_folder: Path
+    #: the rules every card was made under (one set for all: n_boot, seed,
+    #: safety_threshold, baselines)
+    settings: dict[str, Any] = field(default_factory=dict)
 
 
 def outcome_shares(runs: pd.DataFrame, controllers: Sequence[str]) -> pd.DataFrame:
@@ -114,36 +121,38 @@ def compare_table(runs: pd.DataFrame, pedestrians: pd.DataFrame, controllers: Se
 
 
 # ------------------------------------------------------------------ files and runs
-def card_is_current(card_json: Path, ev: Evaluation) -> bool:
-    """Whether ``card_json`` is the card of ``ev``: same study configuration and
-    baselines, and no run of ``ev`` was simulated since (nothing executed)."""
-    if ev.executed or not card_json.exists():
-        return False
-    card = json.loads(card_json.read_text("utf-8"))
-    return (card.get("config_hash") == ev.study.config_hash()
-            and card.get("baselines") == list(ev.baselines))
-
-
 def compare(controllers: Sequence[str], study: Study, base_folder: Path, *, workers: int = 2,
-            n_boot: int = 1000, seed: int = 0, show_progress: bool = True,
+            n_boot: int = 1000, seed: int = 0, safety_threshold: float | None = None,
+            baselines: Sequence[str] = BASELINES, show_progress: bool = True,
             log: Log | None = None) -> Comparison:
-    """Evaluate (cached) and card every controller that has no current card, then compare
-    them all on the union of their runs (module doc)."""
+    """Evaluate (cached) every controller and make its card unless the one in
+    ``STUDY/evaluate`` is current under these settings (:func:`.card_files.card_is_current`:
+    same identity, every file intact; else it is made again and ``log`` says why), then
+    compare them all on the union of their runs (module doc)."""
     say = log or (lambda _msg: None)
     ids = tuple(dict.fromkeys(controller_id(*parse_controller_id(c)) for c in controllers))
-    for c in ids:  # every name must resolve before anything runs
+    check_card_settings(n_boot, seed, safety_threshold)
+    for c in (*ids, *baselines):  # every name must resolve before anything runs
         CONTROLLERS.make(c)
     evaluations, verdicts, cards = [], {}, {}
     for c in ids:
-        out = Path(base_folder) / EVALUATE_DIR / slug(c)
-        ev = evaluate(c, study, base_folder, out, baselines=BASELINES, workers=workers,
+        out = card_folder(base_folder, c)
+        ev = evaluate(c, study, base_folder, out, baselines=baselines, workers=workers,
                       show_progress=show_progress, log=say)
-        if card_is_current(out / "card.json", ev):
-            say(f"{c}: card reused ({out / 'card.html'})")
+        identity = card_identity(ev.controller, ev.baselines, study.config_hash(),
+                                 (ev.runs, ev.pedestrians), n_boot=n_boot, seed=seed,
+                                 safety_threshold=safety_threshold)
+        had = any((out / name).exists() for name in (CARD, "card.html", "card.png"))
+        why = card_is_current(out, identity)
+        if why:
+            make_card(ev, n_boot=n_boot, seed=seed, safety_threshold=safety_threshold)
+            say(f"{c}: card → {out / 'card.html'}" + (f" (made again: {why})" if had else ""))
         else:
-            make_card(ev, n_boot=n_boot, seed=seed)
-            say(f"{c}: card → {out / 'card.html'}")
-        verdicts[c] = json.loads((out / "card.json").read_text("utf-8"))["verdict"]
+            say(f"{c}: card reused ({out / 'card.html'})")
+        doc, why = card_intact(out)
+        if why:  # written a moment ago: only a concurrent writer gets here
+            raise InputError(f"card {out}: {why}", hint="make it again")
+        verdicts[c] = doc["verdict"]
         cards[c] = out / "card.html"
         evaluations.append(ev)
     runs = pd.concat([e.runs for e in evaluations]).drop_duplicates(list(RUN_KEY))
@@ -151,4 +160,6 @@ def compare(controllers: Sequence[str], study: Study, base_folder: Path, *, work
     runs = runs[runs["controller"].isin([*ids, NO_ROBOT])]
     peds = peds[peds["controller"].isin([*ids, NO_ROBOT])]
     table, per_pop = compare_table(runs, peds, ids, verdicts)
-    return Comparison(ids, table, per_pop, cards, verdicts, study, Path(base_folder))
+    settings = {"n_boot": n_boot, "seed": seed, "safety_threshold": safety_threshold,
+                "baselines": list(baselines)}
+    return Comparison(ids, table, per_pop, cards, verdicts, study, Path(base_folder), settings)

@@ -2,8 +2,13 @@
 CSV, and its main columns as Markdown and LaTeX.
 
 ``write_comparison(comparison, page)`` writes ``page`` (``.html``) and, beside it, the
-same stem with ``.csv`` (every column), ``.md`` and ``.tex`` (:func:`display_table`) and
-``.png`` (the figure, also embedded in the page).
+same stem with ``.csv`` (every column), ``.md`` and ``.tex`` (:func:`display_table`),
+``.png`` (the figure, also embedded in the page) and, last, ``.json``: the manifest of
+the set (the controllers, the settings their cards were made under, each file's sha256;
+:class:`popnavshift.outputs.FileSet`), so a comparison interrupted while it is written
+never leaves the tables of one set of controllers beside the page of another
+unannounced. :func:`check_page` refuses, before any work, a page whose files would
+replace files that no comparison wrote.
 """
 
 from __future__ import annotations
@@ -18,11 +23,13 @@ import pandas as pd
 from jinja2 import Environment, select_autoescape
 
 from ..analysis.ranked import names
-from ..io import write_text
+from ..errors import ConfigError, InputError
+from ..io import read_json_object
+from ..outputs import FileSet, check_writable
 from .card import METRIC_LABELS
-from .card_page import population_panel, save_png
+from .card_page import png_bytes, population_panel
 from .compare import COMPARE_METRICS, Comparison
-from .export import write_table
+from .export import table_text
 
 RANKED = names(summary=True)  # the ranks the main table shows
 _SHARES = {"success": "success %", "pedestrian_collision": "ped. coll. %",
@@ -67,6 +74,7 @@ def compare_figure(comparison: Comparison):
     import matplotlib  # lazy: slow to import
 
     matplotlib.use("Agg")
+    matplotlib.rcParams["text.parse_math"] = False  # a label is data: "$" is no math
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(2, 2, figsize=(12, 8), constrained_layout=True)
@@ -90,16 +98,56 @@ def render_html(comparison: Comparison, png: bytes, page: Path) -> str:
         links=links, png=base64.b64encode(png).decode("ascii"), stem=Path(page).stem)
 
 
-def write_comparison(comparison: Comparison, page: Path) -> dict[str, Path]:
-    """Write the page and its tables and figure (module doc); format → path."""
+#: the files of a comparison, by the suffix of the page's stem; the manifest is ``.json``
+SUFFIXES: tuple[str, ...] = (".html", ".csv", ".md", ".tex", ".png")
+KIND = "popnavshift compare"
+
+
+def check_page(page: Path, *, ours: bool = False) -> None:
+    """ConfigError unless ``page`` (``--out``) can be written: an ``.html`` name in a
+    folder we may write (or create), not a folder, and none of its files
+    (:data:`SUFFIXES` and the ``.json`` manifest) an existing file that an earlier
+    comparison, by its manifest, did not write (unless the folder is ``ours``: the study's
+    own ``compare/``, where a comparison of an older version left no manifest)."""
     page = Path(page)
-    page.parent.mkdir(parents=True, exist_ok=True)
-    paths = {"csv": write_table(comparison.table, page.with_suffix(".csv"), "csv")}
+    hint = "choose another --out (default: STUDY_DIR/compare/compare.html)"
+    if page.suffix != ".html":
+        raise ConfigError(f"--out must name an .html page, got {str(page)!r}",
+                          hint=f"e.g. --out {page.with_suffix('.html')}")
+    manifest = page.with_suffix(".json")
+    written: set[str] = set()
+    try:
+        doc = read_json_object(manifest) if manifest.is_file() else {}
+    except InputError:
+        doc = {}
+    if doc.get("kind") == KIND and isinstance(doc.get("files"), dict):
+        written = {*doc["files"], manifest.name}
+    for path in (page.with_suffix(s) for s in (*SUFFIXES, ".json")):
+        if path.is_dir():
+            raise ConfigError(f"--out {page}: {path} is a folder", hint=hint)
+        if path.exists() and not ours and path.name not in written:
+            raise ConfigError(f"--out {page} would replace {path}, which no comparison wrote",
+                              hint=hint + ", or move that file")
+    check_writable(page.parent, f"--out {page}")
+
+
+def write_comparison(comparison: Comparison, page: Path) -> dict[str, Path]:
+    """Write the page and its tables and figure as one set (module doc; the caller has
+    checked ``page``: :func:`check_page`); format → path."""
+    page = Path(page)
     shown = display_table(comparison.table)
-    for fmt in ("md", "tex"):
-        paths[fmt] = write_table(shown, page.with_suffix(f".{fmt}"), fmt)
-    paths["png"] = save_png(compare_figure(comparison), page.with_suffix(".png"), dpi=100)
-    paths["html"] = write_text(render_html(comparison, paths["png"].read_bytes(), page), page)
+    with FileSet(page.parent, page.with_suffix(".json").name) as files:
+        paths = {"csv": files.add_text(page.with_suffix(".csv").name,
+                                       table_text(comparison.table, "csv"))}
+        for fmt in ("md", "tex"):
+            paths[fmt] = files.add_text(page.with_suffix(f".{fmt}").name, table_text(shown, fmt))
+        png = png_bytes(compare_figure(comparison), dpi=100)
+        paths["png"] = files.add(page.with_suffix(".png").name, lambda tmp: tmp.write_bytes(png))
+        paths["html"] = files.add_text(page.name, render_html(comparison, png, page))
+        files.commit({"kind": KIND, "controllers": list(comparison.controllers),
+                      "study": comparison.study.name,
+                      "config_hash": comparison.study.config_hash(),
+                      "settings": comparison.settings, "verdicts": comparison.verdicts})
     return paths
 
 
@@ -113,8 +161,12 @@ td{text-align:right;white-space:nowrap}td.l,th{text-align:left}.small{color:#555
 <h1>Controllers compared</h1>
 <p>Study <b>{{ c.study.name }}</b> ({{ c.base_folder }}): {{ c.controllers | length }}
 controllers on the same episodes and populations. Each row's verdict is its robustness
-card's (against the study's built-in baselines); the other columns are computed here on
-the union of their runs.</p>
+card's, every card made under the same rules: against
+{{ c.settings.get("baselines", []) | join(", ") or "the built-in baselines" }},
+{{ c.settings.get("n_boot", "–") }} bootstrap resamples, seed {{ c.settings.get("seed", "–") }},
+{% if c.settings.get("safety_threshold") is not none %}safety threshold
+{{ c.settings.safety_threshold }} of the runs{% else %}no absolute safety threshold{% endif %};
+the other columns are computed here on the union of their runs.</p>
 <table><tr>{% for col in columns %}<th>{{ col }}</th>{% endfor %}</tr>
 {% for r in rows %}<tr>{% for col in columns %}{% if loop.index <= 2 %}<td class="l{%
 if col == 'verdict' %} {{ r[col] | replace(' ', '-') }}{% endif %}">{% if col == 'controller'

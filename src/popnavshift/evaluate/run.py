@@ -25,7 +25,6 @@ A run in which the controller raises is recorded as ``controller_error`` (see
 
 from __future__ import annotations
 
-import re
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -47,22 +46,23 @@ from ..engine.store import RunStore
 from ..engine.worker import Context
 from ..episodes.specs import all_episodes
 from ..errors import ConfigError, InputError
-from ..hashing import digest
 from ..io import write_json
+from ..outputs import FileSet
 from ..paper import PAPER_CONTROLLERS
 from ..pipeline import read_table
+from ..read.access import CARD
 from ..sim.check import ControllerContractError, check_controller
 from ..sim.controllers import CONTROLLERS
 from ..tables import NO_ROBOT, RUN_KEY
 from ..version import __version__
 from ..viz.replay import render_svg, run_outcome
-from .card import OUTCOME_LABELS, card_tables
+from .card import OUTCOME_LABELS, Card, card_tables
+from .card_files import card_folder, card_identity, check_card_settings, check_out
 from .card_page import write_card
-from .export import write_table
+from .export import table_text
 
 BASELINES: tuple[str, ...] = PAPER_CONTROLLERS  # a card sets a controller beside the paper's
 Tables = tuple[pd.DataFrame, pd.DataFrame]  # runs, pedestrians
-EVALUATE_DIR = "evaluate"
 Log = Callable[[str], None]
 
 
@@ -98,12 +98,6 @@ class _SharedShards(RunStore):
         super().__init__(out)
         self.runs_dir = Path(base_folder) / "shards" / "runs"
         self.peds_dir = Path(base_folder) / "shards" / "peds"
-
-
-def slug(identity: str) -> str:
-    """A folder name for a controller id; a short hash keeps distinct ids apart."""
-    s = re.sub(r"[^A-Za-z0-9_.-]+", "-", identity).strip("-")[:60] or "controller"
-    return s if s == identity else f"{s}-{digest(identity)[:8]}"
 
 
 def check(factory: Any) -> str:
@@ -148,7 +142,8 @@ def evaluate(
     for b in base_ids:  # fail before anything runs
         CONTROLLERS.make(b)
     base_folder = Path(base_folder)
-    out = Path(out) if out is not None else base_folder / EVALUATE_DIR / slug(identity)
+    out = Path(out) if out is not None else card_folder(base_folder, identity)
+    check_out(out, base_folder)
 
     base = run_study(study, base_folder, workers=workers, show_progress=show_progress)
     say(f"baseline study {study.name} ({base_folder}): {base.reused:,} runs reused, "
@@ -243,26 +238,24 @@ def replay(ev: Evaluation, key: dict[str, Any]) -> tuple[dict, dict]:
 
 def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0,
               safety_threshold: float | None = None) -> tuple[Path, Path]:
-    """Write ``card.html``, ``card.png``, the verdict as ``card.json`` and every table the
-    card shows as ``<name>.csv`` (:meth:`Card.tables`; the outcomes also as ``outcomes.md``
-    and ``outcomes.tex``) into ``ev.out``; returns the page's and the figure's paths.
-    ``seed`` drives the bootstrap (the same seed gives the same intervals);
-    ``safety_threshold``, when given, is a share of the controller's runs
+    """Write ``card.html``, ``card.png``, every table the card shows as ``<name>.csv``
+    (:meth:`Card.tables`; the outcomes also as ``outcomes.md`` and ``outcomes.tex``) and,
+    last, ``card.json`` (its identity, :func:`.card_files.card_identity`, its verdict and
+    every file's sha256) into ``ev.out``, as one set (:class:`popnavshift.outputs.FileSet`:
+    an interrupted card is never taken for a finished one); returns the page's and the
+    figure's paths. ``seed`` drives the bootstrap (the same seed gives the same
+    intervals); ``safety_threshold``, when given, is a share of the controller's runs
     above which a collision kind or controller errors read unsafe whatever the baselines
     do."""
+    check_card_settings(n_boot, seed, safety_threshold)
+    identity = card_identity(ev.controller, ev.baselines, ev.study.config_hash(),
+                             (ev.runs, ev.pedestrians), n_boot=n_boot, seed=seed,
+                             safety_threshold=safety_threshold)
     n_sets = int(seed_sets(ev.runs).nunique())
     card = card_tables(ev.runs, ev.pedestrians, ev.controller, ev.baselines,
                        rng=np.random.default_rng(seed), n_boot=n_boot, seed_sets=n_sets,
                        safety_threshold=safety_threshold)
-    svg, note = None, ""
-    if card.worst_run is not None:
-        traj, row = replay(ev, card.worst_run)
-        same = row["outcome"] == card.worst_run["outcome"] and np.isclose(
-            row["robot_time"], card.worst_run["robot_time"], rtol=0, atol=1e-9)
-        note = ("The replay reproduces the stored run." if same else
-                f"The replay does NOT reproduce the stored run (it ends in {row['outcome']}).")
-        title = f"{card.worst_run['episode']} · {card.worst_run['population']} → {row['outcome']}"
-        svg = render_svg(traj, title=title, outcome=run_outcome(row))
+    svg, note = _worst_replay(ev, card)
     meta = {"study": ev.study.name, "part": ev.part, "check": ev.check, "reused": ev.reused,
             "executed": ev.executed, "n_runs": ev.counts["controller_runs"],
             "n_errors": ev.counts["controller_errors"],
@@ -274,19 +267,30 @@ def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0,
             "base_folder": str(ev.base_folder), "seed_sets": n_sets, "n_used": len(ev.runs),
             "safety_threshold": safety_threshold}
     tables = card.tables()
-    for name, table in tables.items():
-        write_table(table, ev.out / f"{name}.csv", "csv")
     main = tables["outcomes"][list(OUTCOME_LABELS)].rename(columns=OUTCOME_LABELS)
-    for fmt in ("md", "tex"):  # the main table, for a paper
-        write_table(main, ev.out / f"outcomes.{fmt}", fmt)
-    write_json({"controller": ev.controller, "baselines": list(ev.baselines),
-                "verdict": {"label": card.verdict.label, "text": card.verdict.text,
-                            "safety": card.verdict.safety,
-                            "seed_sets_to_decide": (card.verdict.seed_sets_to_decide if
-                                                    np.isfinite(card.verdict.seed_sets_to_decide)
-                                                    else None)},
-                "safety_threshold": safety_threshold, "n_boot": n_boot, "seed": seed,
-                "config_hash": ev.study.config_hash(), "tables": [f"{n}.csv" for n in tables]},
-               ev.out / "card.json")
-    return write_card(card, meta, ev.out, svg)
+    v = card.verdict
+    with FileSet(ev.out, CARD) as files:
+        for name, table in tables.items():
+            files.add_text(f"{name}.csv", table_text(table, "csv"))
+        for fmt in ("md", "tex"):  # the main table, for a paper
+            files.add_text(f"outcomes.{fmt}", table_text(main, fmt))
+        html, png = write_card(card, meta, files, svg)
+        files.commit({**identity, "tables": [f"{n}.csv" for n in tables], "verdict": {
+            "label": v.label, "text": v.text, "safety": v.safety,
+            "seed_sets_to_decide": (v.seed_sets_to_decide if np.isfinite(v.seed_sets_to_decide)
+                                    else None)}})
+    return html, png
 
+
+def _worst_replay(ev: Evaluation, card: Card) -> tuple[str | None, str]:
+    """The card's worst run simulated again and drawn (SVG), and whether it reproduces
+    the stored run; (None, "") without a worst run."""
+    if card.worst_run is None:
+        return None, ""
+    traj, row = replay(ev, card.worst_run)
+    same = row["outcome"] == card.worst_run["outcome"] and np.isclose(
+        row["robot_time"], card.worst_run["robot_time"], rtol=0, atol=1e-9)
+    note = ("The replay reproduces the stored run." if same else
+            f"The replay does NOT reproduce the stored run (it ends in {row['outcome']}).")
+    title = f"{card.worst_run['episode']} · {card.worst_run['population']} → {row['outcome']}"
+    return render_svg(traj, title=title, outcome=run_outcome(row)), note
