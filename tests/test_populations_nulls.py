@@ -9,12 +9,8 @@ from popnavshift.errors import ConfigError
 from popnavshift.personas.synthetic import generate_personas
 from popnavshift.personas.variants import matched_ids
 from popnavshift.populations.build import POPULATIONS, membership
-from popnavshift.populations.identity import PopulationSpec, index_of
-from popnavshift.populations.nulls import (
-    null_populations,
-    sized_subset,
-    swap_variants,
-)
+from popnavshift.populations.identity import PopulationSpec, index_of, null_populations
+from popnavshift.populations.nulls import sized_subset, swap_variants
 from popnavshift.profiles.mappings import build_profiles
 from popnavshift.responses.collect import collect_responses
 from popnavshift.responses.rule import RuleRespondent
@@ -110,12 +106,13 @@ def test_a_swap_null_part_stands_for_the_matched_pair():
                                              for a in "ab")
     bad = {"name": "t", "parts": {"n": {"populations": ["mixed"],
                                         "null_design": {"kind": "swap"}}}}
-    with pytest.raises(ConfigError, match="swap null stands in for the matched pair"):
+    with pytest.raises(ConfigError, match="swap null stands in for matched_base and "
+                                          "matched_deadline"):
         study_from_dict(bad, "t")
 
 
 def test_population_columns_say_what_a_population_is():
-    from popnavshift.populations.nulls import with_population_columns
+    from popnavshift.populations.identity import with_population_columns
 
     assert PopulationSpec("mixed").columns() == {"population_role": "observed",
                                                  "null_replicate": 0}

@@ -13,7 +13,7 @@ from __future__ import annotations
 import re
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 from pydantic import (
     Field,
@@ -29,8 +29,7 @@ from ..errors import ConfigError, UnknownNameError
 from ..hashing import digest
 from ..paper import PAPER_CONTROLLERS, PAPER_POPULATIONS
 from ..populations.build import POPULATIONS, SPLIT_HALVES, is_known, known
-from ..populations.identity import MATCHED_PAIR, SIZED_SOURCE, PopulationSpec, index_of
-from ..populations.nulls import null_populations
+from ..populations.identity import NULL_KINDS, PopulationSpec, index_of, null_populations
 from ..populations.perturb import ProfileSet
 from ..strict import Count, Names, Number, Seed, Strict, Unique
 from .specs import PersonaSource, RespondentSpec
@@ -64,21 +63,36 @@ class EpisodeSelection(Strict):
 
 
 class NullDesign(Strict):
-    """A null design in place of a part's populations (:mod:`popnavshift.populations.nulls`):
-    ``swap`` permutations of the matched pair, or ``sized`` random subsets of mixed
-    matched in size to each of the part's populations (each kind's populations are
-    declared in :data:`popnavshift.populations.identity.NULL_KINDS`)."""
+    """A null design in place of a part's populations: a kind of
+    :data:`popnavshift.populations.identity.NULL_KINDS` (``swap`` permutations of the
+    matched pair, ``sized`` random subsets of mixed matched in size to each of the part's
+    populations, …) and its number of replicates."""
 
-    kind: Literal["swap", "sized"]
+    kind: str
     replicates: Annotated[int, Field(strict=True, ge=1, le=999)] = 19
 
+    @field_validator("kind")
+    @classmethod
+    def _declared_kind(cls, v: str) -> str:
+        if v not in NULL_KINDS:
+            raise ValueError(str(UnknownNameError("null design kind", v, NULL_KINDS)))
+        return v
 
-#: What the analysis does with a study part: ``main`` is the paper's design (Table I, the
-#: headline), ``mapping``, ``structure``, ``backend`` and ``respondent`` each give one
-#: robustness table, ``other`` nothing of its own (null replicates, split halves and extra
-#: seed sets are found by their populations and episodes wherever they run).
-PartRole = Literal["main", "mapping", "structure", "backend", "respondent", "other"]
-PART_ROLES: tuple[str, ...] = PartRole.__args__  # type: ignore[attr-defined]
+
+#: What the analysis does with a study part, by role, with its title in the report:
+#: ``main`` is the paper's design (Table I, the headline), ``mapping``, ``structure``,
+#: ``backend`` and ``respondent`` each give one robustness section
+#: (:data:`popnavshift.analysis.study_robustness.ROLE_TABLES`), ``other`` nothing of its
+#: own (null replicates, split halves and extra seed sets are found by their populations
+#: and episodes wherever they run).
+PART_ROLES: dict[str, str] = {
+    "main": "The paper's design (Table I and the headline)",
+    "mapping": "Mapping sensitivity (paper Table III)",
+    "structure": "Profile structure (paper §V-D)",
+    "backend": "Pedestrian dynamics: Ped-ORCA vs navground HL (paper §V-E)",
+    "respondent": "Respondent robustness: the matched intervention again",
+    "other": "Other parts",
+}
 
 
 def role_from_content(part: Part) -> str:
@@ -115,9 +129,9 @@ class Part(Strict):
     #: run a null design instead of ``populations`` (which it stands in for): the
     #: populations run are :attr:`planned_populations`
     null_design: NullDesign | None = None
-    #: what the analysis does with it (:data:`PartRole`); default: its name when that is a
-    #: role, else its content (:func:`role_from_content`) — :meth:`Study.role`
-    role: PartRole | None = None
+    #: what the analysis does with it (:data:`PART_ROLES`); default: its name when that is
+    #: a role, else its content (:func:`role_from_content`) — :meth:`Study.role`
+    role: str | None = None
 
     @model_serializer(mode="wrap")
     def _without_unset_role(self, handler: Any) -> dict[str, Any]:
@@ -156,6 +170,13 @@ class Part(Strict):
             return v
         return tuple(_controller_entry(c) for c in v)
 
+    @field_validator("role")
+    @classmethod
+    def _declared_role(cls, v: str | None) -> str | None:
+        if v is not None and v not in PART_ROLES:
+            raise ValueError(str(UnknownNameError("part role", v, PART_ROLES)))
+        return v
+
     @field_validator("populations")
     @classmethod
     def _known_populations(cls, v):
@@ -170,27 +191,29 @@ class Part(Strict):
 
     @model_validator(mode="after")
     def _runs_something(self) -> Part:
-        """A sized null of ``mixed`` alone has no population to stand in for: the part
-        would plan no run at all."""
+        """A null design planning no population (its kind's ``replicate`` says why when it
+        cannot stand in for the part's populations) would plan no run at all."""
         if self.null_design is not None and not self.planned_populations:
-            raise ValueError(f"a sized null stands in for populations other than "
-                             f"{SIZED_SOURCE!r} (its own size-matched subset), got "
+            raise ValueError(f"a {self.null_design.kind} null stands in for none of "
                              f"{list(self.populations)}")
         return self
 
     @model_validator(mode="before")
     @classmethod
-    def _swap_stands_for_matched(cls, data: Any) -> Any:
-        """A swap null stands in for the matched pair: that is its populations' default,
-        and any other populations are an error."""
-        if not (isinstance(data, dict) and isinstance(data.get("null_design"), dict)
-                and data["null_design"].get("kind") == "swap"):
+    def _null_stands_for_its_own(cls, data: Any) -> Any:
+        """A null kind that always stands in for the same populations (a swap null: the
+        matched pair) has them as its part's default, and any others are an error."""
+        design = data.get("null_design") if isinstance(data, dict) else None
+        name = design.get("kind") if isinstance(design, dict) else None
+        kind = NULL_KINDS.get(name) if isinstance(name, str) else None
+        if kind is None or not kind.stands_for:
             return data
-        pops = data.get("populations", MATCHED_PAIR)
-        if not isinstance(pops, list | tuple) or sorted(map(str, pops)) != sorted(MATCHED_PAIR):
-            raise ValueError(f"a swap null stands in for the matched pair: populations "
-                             f"{list(MATCHED_PAIR)} (the default), got {pops!r}")
-        return {**data, "populations": tuple(MATCHED_PAIR)}
+        own = kind.stands_for
+        pops = data.get("populations", own)
+        if not isinstance(pops, list | tuple) or sorted(map(str, pops)) != sorted(own):
+            raise ValueError(f"a {name} null stands in for {' and '.join(own)}: "
+                             f"populations {list(own)} (the default), got {pops!r}")
+        return {**data, "populations": tuple(own)}
 
 
 def _controller_entry(entry: Any) -> Any:

@@ -200,7 +200,7 @@ def split_halves(populations) -> list[tuple[str, str, str]]:
     """(population, half a, half b) for every pair of split halves (:data:`HALVES`) among
     ``populations``."""
     have = set(map(str, populations))
-    pairs = {(h.base, h.name, PopulationSpec.half(h.base, "b").name)
+    pairs = {(str(h.base), h.name, PopulationSpec.half(str(h.base), "b").name)
              for h in HALVES if h.arm == "a"}
     return sorted(p for p in pairs if {p[1], p[2]} <= have)
 

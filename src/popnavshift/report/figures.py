@@ -30,22 +30,16 @@ from ..analysis.summary import controller_order  # noqa: E402
 from ..populations.build import POPULATION_GROUPS, population_order  # noqa: E402
 from ..populations.figures import save_figure, write_profile_figures  # noqa: E402
 from ..populations.identity import MATCHED_PAIR  # noqa: E402
-from ..viz.style import controller_style  # noqa: E402
+from ..viz.style import controller_label, controller_style  # noqa: E402
 
 if TYPE_CHECKING:
     from ..analysis.study import Analysis
 
-CONTROLLER_LABELS = {"reactive": "Reactive", "early_yield": "Early yielding",
-                     "robot_orca": "Robot-ORCA", "pooled": "pooled", "none": "no robot"}
 METRIC_LABELS = {m.name: m.title for m in RANKED_METRICS}
 #: Fig. 2 row groups, top to bottom: matched pair, source-field cohorts, mixed, probe cohorts.
 CHANGE_GROUPS: tuple[tuple[str, ...], ...] = (
     (MATCHED_PAIR[1],), POPULATION_GROUPS["source-field"], ("mixed",),
     POPULATION_GROUPS["probe-defined"])
-
-
-def controller_label(name: str) -> str:
-    return CONTROLLER_LABELS.get(name, name)
 
 
 def pop_label(name: str) -> str:

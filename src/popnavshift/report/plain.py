@@ -27,14 +27,19 @@ from ..analysis.verdicts import (
     min_nulls_permutation,
 )
 from ..populations.identity import NULL_KINDS
+from ..viz.style import controller_label
 from .blocks import pct
-from .figures import controller_label, pop_label
+from .figures import pop_label
 
 BURDEN = names("burden")
 ROBOT = names("robot")
 LABELS = {m.name: m.label for m in RANKED_METRICS}
-#: each null design kind's replicates in words (declared with the kind)
-NULL_WORDS = {name: kind.words for name, kind in NULL_KINDS.items()}
+
+
+def null_words(kind: str, otherwise: str) -> str:
+    """A null design kind's replicates in words, as it declares them
+    (:data:`popnavshift.populations.identity.NULL_KINDS`); ``otherwise`` for another kind."""
+    return NULL_KINDS[kind].words if kind in NULL_KINDS else otherwise
 
 
 def pp(x: float, signed: bool = True) -> str:
@@ -58,7 +63,7 @@ SHORT = {"matched": "under the matched shift", "all_pairs": "across the populati
 def design_phrase(r: Any, n_pairs: int, n_populations: int) -> str:
     """Where a comparison's rates come from: its design and its null."""
     design = (f"{int(r['variants_per_cell'])} variants per cell, against {int(r['n_null'])} "
-              f"{NULL_WORDS.get(str(r['null']), 'null replicates')}")
+              f"{null_words(str(r['null']), 'null replicates')}")
     if r["comparison"] == "matched":
         return f"under the matched time-pressure shift (same personas; {design})"
     return f"across the {n_pairs} pairs of the {n_populations} populations ({design})"
