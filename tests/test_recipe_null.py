@@ -15,7 +15,8 @@ from typing import get_args
 import pandas as pd
 import pytest
 
-from popnavshift.design.study import NullDesign, load_study
+from popnavshift.design.part import NullDesign
+from popnavshift.design.study import load_study
 from popnavshift.populations.identity import NULL_KINDS, Role
 from recipes import package_with, run_with
 

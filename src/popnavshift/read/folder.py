@@ -21,8 +21,9 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from ..design.part import Part
 from ..design.plan import select_episodes
-from ..design.study import Part, Study, study_from_dict
+from ..design.study import Study, study_from_dict
 from ..episodes.specs import seed_set_id
 from ..errors import InputError
 from ..populations.build import HALVES, population_order

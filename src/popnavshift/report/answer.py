@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from ..analysis.ranked import names
+from ..analysis.reversals import COMPARISONS
 from ..analysis.verdicts import ABOVE, BELOW, CLAIMS, SMALL
 from ..populations.build import population_order
 from ..viz.style import controller_label
@@ -27,8 +28,6 @@ from .plain import LABELS, answer_sentences, null_words, pp
 
 #: The headline's metrics, in the order the box lists them: burden first, then robot time.
 HEADLINE_METRICS: tuple[str, ...] = (*names("burden"), *names("robot"))  # burden first
-COMPARISONS = {"matched": "Matched time-pressure shift (same personas)",
-               "all_pairs": "All population pairs of the main grid"}
 
 
 def _p(x: Any) -> str:
@@ -71,7 +70,7 @@ def headline_entries(head: pd.DataFrame) -> list[dict[str, Any]]:
     the raw rate's verdict first, then the exact p, the episode-only interval and the
     significant rule as details."""
     box = []
-    for comp, title in COMPARISONS.items():
+    for comp, c in COMPARISONS.items():
         h = head[(head["comparison"] == comp) & (head["n_null"] > 0)]
         if h.empty:
             continue
@@ -84,7 +83,7 @@ def headline_entries(head: pd.DataFrame) -> list[dict[str, Any]]:
             sig = rows.loc["sig"] if "sig" in rows.index else None
             lines.append({"text": _raw_line(raw), "verdict": raw["verdict"],
                           "good": raw["verdict"] in CLAIMS, "details": _details(raw, sig)})
-        box.append({"title": title, "design": design_text(h.iloc[0]), "lines": lines})
+        box.append({"title": c.title, "design": design_text(h.iloc[0]), "lines": lines})
     return box
 
 

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from ..analysis import paper_reference as paper
-from ..design.study import PART_ROLES
+from ..design.part import PART_ROLES
 from ..populations.perturb import ProfileSet
 from .blocks import Block, Cell, Page, SectionSpec, para, pct, table
 from .figures import METRIC_LABELS
@@ -121,7 +121,7 @@ def second_respondent(manifest: dict[str, Any]) -> str:
 
 
 #: one section per robustness role, titled by the role's declaration
-#: (:data:`popnavshift.design.study.PART_ROLES`)
+#: (:data:`popnavshift.design.part.PART_ROLES`)
 MAPPING = SectionSpec(
     "mapping", PART_ROLES["mapping"], _mapping, needs=("robust_mapping",),
     intro="Twelve representative episodes, all population pairs; Mappings A–D use the same "

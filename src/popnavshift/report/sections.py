@@ -14,6 +14,7 @@ import pandas as pd
 
 from ..analysis import METRICS
 from ..analysis import paper_reference as paper
+from ..analysis.reversals import COMPARISONS
 from ..analysis.study import CHANGE_METRICS
 from ..analysis.summary import controller_order
 from ..analysis.surviving import findings_list
@@ -165,8 +166,7 @@ def descriptive_note(head: pd.DataFrame | None, power: pd.DataFrame | None) -> s
               if not (g["verdict"] == ABOVE).any()]
     if not within:
         return ""
-    words = {"matched": "the matched intervention", "all_pairs": "the population pairs"}
-    which = " and ".join(words.get(c, c) for c in within)
+    which = " and ".join(COMPARISONS[c].noun if c in COMPARISONS else c for c in within)
     return (f"Descriptive: for {which}, no raw rate below is above its null at the same design "
             "(see 'The answer'): these rates reproduce the paper's statistic, and most of "
             "them are what noise alone produces.")
