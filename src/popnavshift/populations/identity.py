@@ -148,15 +148,14 @@ class NullKind:
 
 def _swap_members(spec: PopulationSpec, records: Records) -> Members:
     ids = records.ids(MATCHED_PAIR[0])
-    return list(zip(ids, swap_variants(ids, spec.replicate, spec.arm, records.seed),
-                    strict=True))
+    coins = records.rng("swap", spec.replicate)  # one draw for both arms
+    return list(zip(ids, swap_variants(ids, spec.arm, coins), strict=True))
 
 
 def _sized_members(spec: PopulationSpec, records: Records) -> Members:
     size = len(records.members(PopulationSpec(spec.base)))
-    subset = sized_subset(records.ids(SIZED_SOURCE), size, str(spec.base), spec.replicate,
-                          records.seed)
-    return [(pid, "baseline") for pid in subset]
+    rng = records.rng("sized", str(spec.base), spec.replicate)
+    return [(pid, "baseline") for pid in sized_subset(records.ids(SIZED_SOURCE), size, rng)]
 
 
 def _sized_replicate(k: int, populations: tuple[str, ...]) -> tuple[PopulationSpec, ...]:

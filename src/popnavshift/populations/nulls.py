@@ -31,31 +31,24 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..hashing import stable_seed
 
-
-def swap_variants(ids: list[str], replicate: int, arm: str, seed: int) -> list[str]:
+def swap_variants(ids: list[str], arm: str, rng: np.random.Generator) -> list[str]:
     """Each of ``ids`` (sorted persona ids of the matched pair) → ``"deadline"`` or
-    ``"baseline"`` in one arm of swap permutation ``replicate``.
+    ``"baseline"`` in one arm of a swap permutation.
 
-    One fair coin per persona, drawn from ``stable_seed("swap", seed, replicate)``
-    in id order: arm ``a`` takes the deadline profile where the coin is 1, arm ``b``
-    where it is 0, so the two arms are complementary.
+    One fair coin per persona, drawn from ``rng`` (seeded by the permutation: both arms
+    draw the same coins) in id order: arm ``a`` takes the deadline profile where the coin
+    is 1, arm ``b`` where it is 0, so the two arms are complementary.
     """
-    rng = np.random.default_rng(stable_seed("swap", seed, int(replicate)))
     coins = rng.integers(0, 2, size=len(ids)).astype(bool)
     deadline = coins if arm == "a" else ~coins
     return ["deadline" if d else "baseline" for d in deadline]
 
 
-def sized_subset(source_ids: list[str], size: int, of: str, replicate: int,
-                 seed: int) -> list[str]:
-    """A seeded random subset (without replacement) of ``size`` of ``source_ids``, sorted.
-
-    The draw depends on the population it stands in for and the replicate, so the
-    subsets of two cohorts of one replicate are independent.
-    """
+def sized_subset(source_ids: list[str], size: int, rng: np.random.Generator) -> list[str]:
+    """A random subset (without replacement) of ``size`` of ``source_ids``, sorted, drawn
+    from ``rng`` (seeded by the population it stands in for and the replicate, so the
+    subsets of two cohorts of one replicate are independent)."""
     ids = np.sort(np.asarray(source_ids, dtype=str))
-    rng = np.random.default_rng(stable_seed("sized", seed, of, int(replicate)))
     take = min(int(size), len(ids))
     return sorted(ids[rng.choice(len(ids), size=take, replace=False)].tolist())
