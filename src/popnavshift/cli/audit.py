@@ -12,7 +12,7 @@ from rich.table import Table
 from ..analysis.audit import rho_text
 from ..errors import ConfigError
 from ..progress import console
-from .app import app, say
+from .app import app, say, stdout
 
 VERDICT_STYLE = {"usable": "green", "weak": "yellow", "not persona-sensitive": "red"}
 
@@ -82,7 +82,7 @@ def audit(
         _print_agreement(t["audit_agreement"])
     for r in t["audit_verdict"].itertuples(index=False):
         style = VERDICT_STYLE[r.verdict]
-        console.print(f"{r.respondent} respondent {say(r.name)} ({say(r.model)}): "
+        stdout.print(f"{r.respondent} respondent {say(r.name)} ({say(r.model)}): "
                       f"[bold {style}]{r.verdict}[/]" + (f" — {say(r.reasons)}" if r.reasons
                                                         else ""), highlight=False)
     if strict and (t["audit_verdict"]["verdict"] != "usable").any():
@@ -95,8 +95,8 @@ def _rows(t: dict[str, pd.DataFrame], name: str, role: str) -> pd.DataFrame:
 
 
 def _print_respondent(t: dict[str, pd.DataFrame], r) -> None:
-    console.rule(f"{r.respondent} respondent: {say(r.name)} ({say(r.model)})")
-    console.print(f"{r.personas} personas; {r.answer_rows} distinct answer rows for "
+    stdout.rule(f"{r.respondent} respondent: {say(r.name)} ({say(r.model)})")
+    stdout.print(f"{r.personas} personas; {r.answer_rows} distinct answer rows for "
                   f"{r.persona_records} distinct persona records", highlight=False)
     sens = _rows(t, "sensitivity", r.respondent).set_index("target")
     spread = _rows(t, "spread", r.respondent).set_index("column")
@@ -112,7 +112,7 @@ def _print_respondent(t: dict[str, pd.DataFrame], r) -> None:
         sensitive = "yes" if x.sensitive else "no" if x.kind == "action" else "[red]no[/]"
         a.add_row(str(name), used, entropy, modal, _num(x.r2), _num(x.null_mean),
                   _num(x.p_value, "{:.3f}"), sensitive)
-    console.print(a)
+    stdout.print(a)
     params = sens[sens["kind"] == "parameter"]
     if not params.empty:
         p = Table("motion parameter", "R²", "null", "p", "sensitive",
@@ -120,32 +120,32 @@ def _print_respondent(t: dict[str, pd.DataFrame], r) -> None:
         for name, x in params.iterrows():
             p.add_row(str(name), _num(x.r2), _num(x.null_mean), _num(x.p_value, "{:.3f}"),
                       "yes" if x.sensitive else "[red]no[/]")
-        console.print(p)
+        stdout.print(p)
     d = Table("persona field → answer", "expected", "Spearman ρ [95%]", "outcome",
               title="expected directions")
     for x in _rows(t, "directions", r.respondent).itertuples(index=False):
         d.add_row(f"{x.field} → {x.target}", x.expected,
                   rho_text(x.rho, x.ci_low, x.ci_high), _outcome(x.outcome))
-    console.print(d)
+    stdout.print(d)
     _print_retest(_rows(t, "retest", r.respondent), r.retest)
     m = _rows(t, "manipulation", r.respondent)
     if m.empty:
-        console.print("matched intervention: no persona was asked both variants.")
+        stdout.print("matched intervention: no persona was asked both variants.")
         return
     mt = Table("item", "expected", "shift [95%]", "up / down", "outcome",
                title=f"matched intervention: deadline − baseline ({int(m['n'].iloc[0])} personas)")
     for x in m[m["target"] != "actions"].itertuples(index=False):
         mt.add_row(x.target, x.expected, f"{x.shift:+.3f} [{x.ci_low:+.3f}, {x.ci_high:+.3f}]",
                    f"{x.up:.0%} / {x.down:.0%}", _outcome(x.outcome))
-    console.print(mt)
+    stdout.print(mt)
     changed = m.loc[m["target"] == "actions", "changed"].iloc[0]
-    console.print(f"probe actions changed by the deadline: {changed:.0%}", highlight=False)
+    stdout.print(f"probe actions changed by the deadline: {changed:.0%}", highlight=False)
 
 
 def _print_retest(g: pd.DataFrame, summary: str) -> None:
     """The test–retest table, or the line saying it was not measured and how to."""
     if g.empty:
-        console.print(f"test–retest: {say(summary)}", highlight=False)
+        stdout.print(f"test–retest: {say(summary)}", highlight=False)
         return
     from ..analysis.audit_verdict import MIN_ICC
 
@@ -157,7 +157,7 @@ def _print_retest(g: pd.DataFrame, summary: str) -> None:
         t.add_row(x.target, _num(x.agree, "{:.0%}"), stat,
                   _num(getattr(x, "within_var", None), "{:.4f}"),
                   _num(getattr(x, "between_var", None), "{:.4f}"))
-    console.print(t)
+    stdout.print(t)
 
 
 def _outcome(text: str) -> str:
@@ -172,4 +172,4 @@ def _print_agreement(g: pd.DataFrame) -> None:
                 "parameter": f"r {_num(getattr(x, 'r', None))}"}[x.kind]
         t.add_row(x.target, str(x.n), _num(getattr(x, "agree", None), "{:.0%}"),
                   _num(getattr(x, "within_one", None), "{:.0%}"), stat)
-    console.print(t)
+    stdout.print(t)
