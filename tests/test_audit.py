@@ -178,16 +178,3 @@ def test_too_few_permutations_to_reach_the_level_is_an_error(personas, rule):
     r = RespondentTables("first", rule, build_profiles(rule, personas, "A"))
     with pytest.raises(ConfigError, match=f"at least {MIN_PERMUTATIONS}"):
         audit_tables(personas, [r], n_perm=MIN_PERMUTATIONS - 1)
-
-
-@pytest.mark.parametrize("n, respondent, expected", [
-    (50, RuleRespondent(), USABLE),  # the size of a first trial with a real model
-    (50, BlindRespondent(), NOT_SENSITIVE),
-    (30, BlindRespondent(), WEAK),  # a shuffle alone explains half of any answer
-])
-def test_a_first_trial_of_fifty_personas_is_judged_thirty_are_too_few(n, respondent, expected):
-    few = generate_personas(n, seed=1)
-    responses, _, _ = collect_responses(few, respondent, matched_ids(few, n // 3))
-    word, reasons = verdict(audit(few, responses))
-    assert word == expected, reasons
-    assert ("too few personas" in reasons) == (n == 30)

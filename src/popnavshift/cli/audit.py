@@ -14,7 +14,8 @@ from ..errors import ConfigError
 from ..progress import console
 from .app import app, say, stdout
 
-VERDICT_STYLE = {"usable": "green", "weak": "yellow", "not persona-sensitive": "red"}
+VERDICT_STYLE = {"usable": "green", "weak": "yellow", "not persona-sensitive": "red",
+                 "not enough personas to tell": "yellow"}
 
 
 def _num(x: Any, pattern: str = "{:.2f}") -> str:
@@ -100,9 +101,10 @@ def _print_respondent(t: dict[str, pd.DataFrame], r) -> None:
                   f"{r.persona_records} distinct persona records", highlight=False)
     sens = _rows(t, "sensitivity", r.respondent).set_index("target")
     spread = _rows(t, "spread", r.respondent).set_index("column")
-    a = Table("answer", "levels", "bits", "modal", "R²", "null", "p", "sensitive",
+    a = Table("answer", "levels", "bits", "modal", "R²", "null", "p",
+              "smallest detectable", "sensitive",
               title="answers: levels used, entropy, modal answer; R² on the persona fields "
-              "against the shuffled null's mean")
+              "against the shuffled null's mean; the smallest R² the test detects (80% power)")
     for name, x in sens[sens["kind"] != "parameter"].iterrows():
         used = entropy = modal = ""
         if name in spread.index:
@@ -111,32 +113,34 @@ def _print_respondent(t: dict[str, pd.DataFrame], r) -> None:
             entropy, modal = _num(s.entropy_bits), f"{say(s.modal)} {s.modal_share:.0%}"
         sensitive = "yes" if x.sensitive else "no" if x.kind == "action" else "[red]no[/]"
         a.add_row(str(name), used, entropy, modal, _num(x.r2), _num(x.null_mean),
-                  _num(x.p_value, "{:.3f}"), sensitive)
+                  _num(x.p_value, "{:.3f}"), _num(x.mde) if x.kind != "action" else "",
+                  sensitive)
     stdout.print(a)
     params = sens[sens["kind"] == "parameter"]
     if not params.empty:
-        p = Table("motion parameter", "R²", "null", "p", "sensitive",
+        p = Table("motion parameter", "R²", "null", "p", "smallest detectable", "sensitive",
                   title="motion parameters of its profiles")
         for name, x in params.iterrows():
             p.add_row(str(name), _num(x.r2), _num(x.null_mean), _num(x.p_value, "{:.3f}"),
-                      "yes" if x.sensitive else "[red]no[/]")
+                      _num(x.mde), "yes" if x.sensitive else "[red]no[/]")
         stdout.print(p)
-    d = Table("persona field → answer", "expected", "Spearman ρ [95%]", "outcome",
-              title="expected directions")
+    d = Table("persona field → answer", "expected", "Spearman ρ [95%]", "smallest detectable",
+              "outcome", title="expected directions")
     for x in _rows(t, "directions", r.respondent).itertuples(index=False):
         d.add_row(f"{x.field} → {x.target}", x.expected,
-                  rho_text(x.rho, x.ci_low, x.ci_high), _outcome(x.outcome))
+                  rho_text(x.rho, x.ci_low, x.ci_high), _num(x.mde, "|ρ| {:.2f}"),
+                  _outcome(x.outcome))
     stdout.print(d)
     _print_retest(_rows(t, "retest", r.respondent), r.retest)
     m = _rows(t, "manipulation", r.respondent)
     if m.empty:
         stdout.print("matched intervention: no persona was asked both variants.")
         return
-    mt = Table("item", "expected", "shift [95%]", "up / down", "outcome",
+    mt = Table("item", "expected", "shift [95%]", "up / down", "smallest detectable", "outcome",
                title=f"matched intervention: deadline − baseline ({int(m['n'].iloc[0])} personas)")
     for x in m[m["target"] != "actions"].itertuples(index=False):
         mt.add_row(x.target, x.expected, f"{x.shift:+.3f} [{x.ci_low:+.3f}, {x.ci_high:+.3f}]",
-                   f"{x.up:.0%} / {x.down:.0%}", _outcome(x.outcome))
+                   f"{x.up:.0%} / {x.down:.0%}", _num(x.mde, "{:+.3f}"), _outcome(x.outcome))
     stdout.print(mt)
     changed = m.loc[m["target"] == "actions", "changed"].iloc[0]
     stdout.print(f"probe actions changed by the deadline: {changed:.0%}", highlight=False)
@@ -149,8 +153,10 @@ def _print_retest(g: pd.DataFrame, summary: str) -> None:
         return
     from ..analysis.audit_verdict import MIN_ICC
 
+    smallest = g["mde"].iloc[0] if "mde" in g else float("nan")
     t = Table("answer / parameter", "all samples agree", "κ / ICC", "within var",
-              "between var", title=f"test–retest: {say(summary)}")
+              "between var", title=f"test–retest: {say(summary)}; the smallest true ICC "
+              f"it passes (80% power): {_num(smallest)}")
     for x in g.itertuples(index=False):
         stat = f"κ {_num(x.kappa)}" if x.kind == "action" else (
             f"ICC {_num(x.icc)}" if not x.icc < MIN_ICC else f"[red]ICC {_num(x.icc)}[/]")
