@@ -255,7 +255,7 @@ def verdict(sens: pd.DataFrame, fails: list[Failure]) -> tuple[str, list[str]]:
                 f"{power.USABLE['sensitivity']:.2f})")
         if not scored["powered"]:
             need = _judged(seen, scored)
-            return UNDECIDED, [f"not enough personas to tell ({_needs_text(need)}): {seen}"]
+            return UNDECIDED, [f"{_needs_text(need)}: {seen}"]
         return NOT_SENSITIVE, [seen + ": the populations built from these answers are "
                                "artifacts"]
     facts = [f.text for f in fails if f.powered]
@@ -265,7 +265,7 @@ def verdict(sens: pd.DataFrame, fails: list[Failure]) -> tuple[str, list[str]]:
         return WEAK, facts + told
     if unpowered:
         worst = max(unpowered, key=lambda f: (f.unit == "personas", f.needs or math.inf))
-        return UNDECIDED, [f"not enough personas to tell ({_needs_text(worst)})", *told]
+        return UNDECIDED, [_needs_text(worst), *told]
     return USABLE, []
 
 

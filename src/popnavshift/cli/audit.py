@@ -36,6 +36,17 @@ def audit(
     strict: Annotated[bool, typer.Option(
         "--strict", help="Exit with code 1 when a respondent is not usable (for scripts, CI).")
                       ] = False,
+    pilot: Annotated[int | None, typer.Option(
+        min=2, max=10_000, rich_help_panel="Pilot",
+        help="Before a study: ask this many of its personas (STUDY_DIR is then a study, "
+        "built-in name or YAML), audit them, time the calls and project the full study's "
+        "calls, tokens and time.")] = None,
+    samples: Annotated[int | None, typer.Option(
+        min=1, max=100, rich_help_panel="Pilot",
+        help="Samples per persona in the pilot (default: the study's).")] = None,
+    out: Annotated[Path | None, typer.Option(
+        "--out", "-o", rich_help_panel="Pilot",
+        help="The pilot's folder (default: ./pilot-<study name>).")] = None,
 ) -> None:
     """Audit the probe answers of every respondent: do they follow the persona?
 
@@ -62,7 +73,17 @@ def audit(
     or not persona-sensitive: its answers carry no more of the persona
     than a shuffle, and the populations built from them are artifacts.
     Thresholds and reasons: docs/analysis.md §11.
-    Example: popnavshift audit study --strict
+    Each check states the smallest effect it could detect at this number
+    of personas; when only checks without the power to see a usable
+    respondent fail, the verdict is "not enough personas to tell"
+    (needs ≈ N).
+
+    With --pilot N, STUDY_DIR names a study (paper, quick, a YAML file):
+    its first N personas are asked with its respondent, audited, and the
+    full study's probe stage projected from the measured pace.
+
+    Example: popnavshift audit study --strict;
+    popnavshift audit my-study.yaml --pilot 30 --samples 2
     """
     from ..analysis.audit import ANSWER_TARGETS
     from ..analysis.audit_verdict import MIN_PERMUTATIONS, audit_tables
@@ -73,6 +94,12 @@ def audit(
         raise ConfigError(f"--permutations {permutations}: expected at least "
                           f"{MIN_PERMUTATIONS}, the fewest whose smallest p reaches the "
                           f"Bonferroni level of the {ANSWER_TARGETS} answers tested")
+    measured = None
+    if pilot is not None:
+        study_dir, measured = _run_pilot(str(study_dir), pilot, samples, out)
+    elif samples is not None or out is not None:
+        raise ConfigError("--samples and --out belong to --pilot",
+                          hint="popnavshift audit STUDY --pilot 30 --samples 2")
     check_study_folder(study_dir)
     personas, respondents = read_respondent_tables(study_dir)
     with console.status("shuffling personas…"):
@@ -86,8 +113,58 @@ def audit(
         stdout.print(f"{r.respondent} respondent {say(r.name)} ({say(r.model)}): "
                       f"[bold {style}]{r.verdict}[/]" + (f" — {say(r.reasons)}" if r.reasons
                                                         else ""), highlight=False)
+    if measured is not None:
+        _print_projection(*measured)
     if strict and (t["audit_verdict"]["verdict"] != "usable").any():
         raise typer.Exit(1)
+
+
+def _run_pilot(study_name: str, n: int, samples: int | None, out: Path | None):
+    """Run the pilot of ``--pilot``: (its folder, (pilot, study, samples))."""
+    from ..engine.lock import study_lock
+    from ..engine.pilot import run_pilot
+    from ..engine.study import load_study
+    from .app import folder
+
+    study = load_study(study_name)
+    target = folder(out or Path(f"pilot-{study.name}"))
+    with study_lock(target):
+        measured = run_pilot(study, n, target, samples)
+    return target, (measured, study, samples)
+
+
+def _print_projection(pilot, study, samples: int | None) -> None:
+    """The pilot's pace, and the full study's probe stage at that pace."""
+    from ..engine.pilot import projection
+
+    p = projection(pilot, study, samples)
+    asked = pilot.records - pilot.cached
+    stdout.rule(f"pilot of study {say(study.name)}")
+    per = p["seconds_per_call"]
+    stdout.print(f"pilot: {pilot.personas} personas, {pilot.matched} matched, "
+                 f"{pilot.samples} sample(s): {pilot.records} records ({pilot.cached} from the "
+                 f"cache), {pilot.calls} calls in {pilot.wall_seconds:.0f} s"
+                 + (f", {per:.1f} s per call" if per is not None else "")
+                 + f" ({pilot.concurrency} at a time)", highlight=False)
+    if "seconds" not in p:
+        stdout.print(f"full study: {p['records']:,} records; nothing was asked of a server "
+                     f"in the pilot ({asked} records asked, {pilot.calls} calls), so there "
+                     "is no pace to project", highlight=False)
+    else:
+        stdout.print(f"full study: {p['records']:,} records ({p['samples']} sample(s)) → "
+                     f"≈ {p['calls']:,} calls, ≈ {p['tokens']:,} tokens, ≈ "
+                     f"{_duration(p['seconds'])} at the pilot's pace", highlight=False)
+    if "second" in p:
+        stdout.print(f"second respondent {say(p['second']['name'])}: "
+                     f"{p['second']['records']:,} more records, not piloted", highlight=False)
+    if pilot.calls:
+        stdout.print(f"the pilot's answers are cached in {say(pilot.folder / 'cache')}",
+                     highlight=False)
+
+
+def _duration(seconds: float) -> str:
+    hours, rest = divmod(round(seconds), 3600)
+    return f"{hours} h {rest // 60:02d} min" if hours else f"{rest // 60} min {rest % 60:02d} s"
 
 
 def _rows(t: dict[str, pd.DataFrame], name: str, role: str) -> pd.DataFrame:

@@ -75,10 +75,13 @@ class Run:
         # Defence in depth: servers sometimes echo credentials in error bodies.
         return redact(text)
 
-    def send(self, body: dict[str, Any], where: str, timeout: float | None) -> Reply:
-        """One call, counted in flight; a reply of any kind is the server heard from, and
-        a call unanswered when nothing was heard for long trips the breaker (a hang)."""
+    def send(self, body: dict[str, Any], where: str, record: Any,
+             timeout: float | None) -> Reply:
+        """One call, counted in flight and timed into ``record.seconds``; a reply of any
+        kind is the server heard from, and a call unanswered when nothing was heard for
+        long trips the breaker (a hang)."""
         self.count("in_flight")
+        started = time.monotonic()
         try:
             reply = self.session.send(body, timeout)
         except RetryableError as exc:
@@ -92,6 +95,7 @@ class Run:
             raise
         finally:
             self.count("in_flight", -1)
+            record.seconds += time.monotonic() - started
         self.heard()
         return reply
 

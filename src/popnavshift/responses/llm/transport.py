@@ -310,7 +310,8 @@ class LLMRespondent(LLMSettings, Respondent):
             body = self._body(req.persona, reasks, limit, req.sample)
             ans.attempts = attempt + 1
             try:
-                send = partial(run.send, body, f"{self.name} server {self.endpoint}")
+                send = partial(run.send, body, f"{self.name} server {self.endpoint}",
+                               ans)
                 reply, calls = send_with_retries(send, policy, run.limiter, run.clock,
                                                  run.stopped, partial(run.count, "retries"))
             except DeadlineReached as exc:
@@ -372,5 +373,5 @@ class LLMRespondent(LLMSettings, Respondent):
 
 def _copy(asked: Answer, req: ProbeRequest) -> Answer:
     """The answer to an identical request, for another record of the same batch."""
-    return replace(asked, persona_id=req.persona_id, variant=req.variant, calls=0,
+    return replace(asked, persona_id=req.persona_id, variant=req.variant, calls=0, seconds=0.0,
                    cached=asked.answer is not None, tokens=dict(asked.tokens))
