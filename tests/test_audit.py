@@ -142,6 +142,7 @@ def _no_deadline_effect(r: pd.DataFrame) -> pd.DataFrame:
 def test_each_failure_of_a_weak_respondent_is_named(personas, rule, change, named):
     word, reasons = verdict(audit(personas, change(rule)))
     assert word == WEAK and named in reasons, reasons
+    assert "nan" not in reasons  # a constant answer's ρ is said as such, not "+nan"
 
 
 def test_a_reversed_direction_reads_reversed():
