@@ -190,15 +190,17 @@ def send_with_retries(
     :class:`DeadlineReached` once the deadline passed. ``on_retry()`` is called before
     each retry (the progress lines count them as they happen)."""
     calls = 0
+    exc_reason = ""
     while True:
         limiter.wait()
         if clock.passed:
-            raise DeadlineReached(f"the deadline of {clock.seconds:g} s passed")
+            raise DeadlineReached("before a call" + (f" (after {exc_reason})" if calls else ""))
         calls += 1
         sent = time.monotonic()
         try:
             return send(clock.bound(math.inf) if clock.end is not None else None), calls
         except RetryableError as exc:
+            exc_reason = exc.reason
             if policy.too_long(exc.retry_after):
                 raise TransportFailure(
                     f"{exc.reason}: the server asks to wait {exc.retry_after:.0f} s "
@@ -211,8 +213,7 @@ def send_with_retries(
                        else "(run stopped)")
                 raise TransportFailure(f"{exc.reason} {why}", calls=calls) from None
             if clock.left() <= wait:
-                raise DeadlineReached(f"the deadline of {clock.seconds:g} s passed "
-                                      f"({exc.reason})") from None
+                raise DeadlineReached(f"before a retry after {exc.reason}") from None
             took = time.monotonic() - sent
             slow = wait >= WAIT_NOTICE or took >= WAIT_NOTICE
             log.log(logging.WARNING if slow else logging.INFO, "%s; retry %d/%d in %.2f s%s",
