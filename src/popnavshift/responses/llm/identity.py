@@ -2,15 +2,19 @@
 
 A model name is not an identity: a llama.cpp server restarted on the same port with
 another ``-m`` (or behind the same ``--alias``) answers to the same name. The
-OpenAI-compatible respondent asks ``GET /models`` before the cache is read and takes
-:func:`listing_identity` of the listing; :func:`served_identity` keeps the last one per
-endpoint and model in the cache, so that a run that cannot ask (no key, server down or
-loading) replays what it last saw (docs/llm.md, "The served model's identity").
+OpenAI-compatible respondent asks ``GET /models`` (and llama.cpp's ``/props``) before the
+cache is read and takes :func:`model_identity`: what defines the model, none of the
+server's configuration (slots, context); :func:`combine` adds the behavioural fingerprint
+of :mod:`.canaries`; :func:`served_identity` keeps the last identity per endpoint and
+model in the cache, so that a run that cannot ask (no key, server down or loading)
+replays what it last saw, and says in one line why a changed one is another model
+(docs/llm.md, "The served model's identity").
 
-Besides the fingerprint, an :class:`Identity` carries what the server says of the model
-for the responses table and the manifest (:func:`listing_details`, :func:`props_details`):
-llama.cpp's file size and parameter count, the model file's *name* (never its path: a
-machine's folders do not belong in a table) and the server's build.
+Besides its key, an :class:`Identity` carries what the server says of the model for the
+responses table and the manifest (:func:`listing_details`, :func:`props_details`):
+llama.cpp's file size, parameter count and quantisation, the model file's *name* (never
+its path: a machine's folders do not belong in a table), the server's build and the
+fingerprint.
 """
 
 from __future__ import annotations

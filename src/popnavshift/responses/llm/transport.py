@@ -19,9 +19,11 @@ Two loops, kept apart (SPEC §3):
 :class:`LLMRespondent` runs both for many records on a thread pool of
 ``max_concurrency`` workers behind a shared :class:`RateLimiter`, with the
 :class:`~.cache.ResponseCache` in front: a valid answer is stored under the hash
-of the record's *first* request (and of the served model's identity, when the server
-names it: one cheap call before the cache is read), so a second identical run makes no
-request.
+of the record's *first* request (and of the served model's identity: its listing and its
+answers to the canary prompts, a few cheap calls before the cache is read), so a second
+identical run asks no record again. The stage's ``deadline`` bounds all of it, calls in
+flight included (:class:`~.retries.Clock`), and a server that answers nothing for two
+request timeouts stops the run (:mod:`.run_state`).
 """
 
 from __future__ import annotations
@@ -143,8 +145,8 @@ class LLMRespondent(LLMSettings, Respondent):
         }
 
     def progress_note(self) -> str:
-        """The current run's network calls, transport retries and failed records so far,
-        for the progress lines."""
+        """The current run's requests in flight, network calls, transport retries and failed
+        records so far, for the progress lines."""
         c = self._counts
         return (f"{c.get('in_flight', 0)} in flight, {c.get('calls', 0)} calls, "
                 f"{c.get('retries', 0)} retries, {c.get('failed', 0)} failed")
