@@ -23,9 +23,7 @@ from popnavshift.analysis.audit_verdict import (
 from popnavshift.engine.respondent_tables import RespondentTables
 from popnavshift.errors import ConfigError
 from popnavshift.personas.synthetic import generate_personas
-from popnavshift.personas.variants import matched_ids
 from popnavshift.profiles.mappings import build_profiles
-from popnavshift.responses.collect import collect_responses
 from popnavshift.responses.probes import PROBE_IDS
 from popnavshift.responses.respondent import Answer, ProbeRequest, Progress, Respondent
 from popnavshift.responses.rule import RuleRespondent

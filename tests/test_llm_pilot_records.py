@@ -5,7 +5,6 @@ that names its model by a machine path keeps no absolute path in any output, and
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import pytest
 

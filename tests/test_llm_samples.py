@@ -76,7 +76,7 @@ def test_extra_body_reaches_the_request_and_the_key(server, tmp_path):
     make(server, tmp_path, extra_body={"cache_prompt": False}).answer_all(reqs)
     assert server.calls == 4
     assert [r.body.get("cache_prompt") for r in server.requests] == [None, None, False, False]
-    with pytest.raises(ConfigError, match="extra_body.seed is refused: set by the respondent.s own option"):
+    with pytest.raises(ConfigError, match="extra_body.seed is refused: set by the respondent"):
         make(server, tmp_path, extra_body={"seed": 3}).answer_all(reqs)
 
 
