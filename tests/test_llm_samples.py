@@ -180,7 +180,7 @@ def test_a_study_with_two_samples_end_to_end(tmp_path):
     assert "median" in manifest["aggregation"]
     audit = run_cli("audit", str(tmp_path / "s"), "--permutations", "319", "--boot", "100")
     assert audit.returncode == 0, audit.stderr
-    assert "test–retest: 2 samples of 40 records" in audit.stderr
+    assert "test–retest: 2 samples of 40 records" in audit.stdout  # its tables are its output
 
 
 def test_samples_without_a_seed_are_refused_by_the_study_check_before_any_stage():

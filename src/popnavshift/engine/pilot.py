@@ -21,6 +21,7 @@ from ..errors import ConfigError
 from ..io import write_parquet
 from ..personas.fields import LOW_TIME_PRESSURE
 from ..pipeline import PopulationSettings, run_personas, run_profiles, run_responses
+from ..responses.respondent import RESPONDENTS
 from .runner import population_settings
 from .study import Study
 
@@ -84,7 +85,8 @@ def run_pilot(study: Study, n: int, folder: Path, samples: int | None = None,
 
 def projection(pilot: Pilot, study: Study, samples: int | None = None) -> dict[str, Any]:
     """The full study's probe stage at the pilot's pace: ``records`` (personas and matched,
-    × samples; a second network respondent's matched pair apart), ``calls``, ``tokens``,
+    × samples; a second respondent that is a network model apart, ``second``), ``calls``,
+    ``tokens``,
     ``seconds`` (wall, at the same concurrency) and the pilot's ``seconds_per_call``.
     Rates come from the records the pilot actually asked (not its cache hits); None when
     it asked none."""
@@ -99,7 +101,7 @@ def projection(pilot: Pilot, study: Study, samples: int | None = None) -> dict[s
         out["calls"] = round(pilot.calls / asked * records)
         out["tokens"] = round(pilot.tokens / asked * records)
         out["seconds"] = pilot.wall_seconds / asked * records
-    if s.respondent2 is not None:
-        out["second"] = {"name": s.respondent2.name,
+    if s.respondent2 is not None and RESPONDENTS.resolve(s.respondent2.name).uses_cache:
+        out["second"] = {"name": s.respondent2.name,  # a network model: its own bill
                          "records": 2 * s.matched_n * s.respondent2.samples}
     return out
