@@ -3,7 +3,7 @@
 On a terminal, a live bar; when stderr is not one (a log file, CI, ``nohup``), a live bar
 would print nothing until the end, so a plain line is printed every
 :data:`PLAIN_EVERY` s instead (:class:`PlainLines`), e.g.
-``probing (openai): 120/400 records, 131 calls, 3 retries, 0 failed``.
+``probing (openai): 120/400 records, 4 in flight, 131 calls, 3 retries, 0 failed``.
 """
 
 from __future__ import annotations

@@ -31,7 +31,7 @@ from . import (  # noqa: F401  (register the commands)
     simulation,
     study,
 )
-from .app import STATE, app, say
+from .app import STATE, app, print_traceback, say
 
 INTERRUPTED = "[yellow]interrupted[/]: finished work is kept; run the same command to resume"
 
@@ -42,11 +42,11 @@ def main() -> None:
         result = app(standalone_mode=False, prog_name="popnavshift")
     except PopNavShiftError as exc:
         if STATE["verbose"]:
-            console.print_exception()
+            print_traceback()
         fail(str(exc))
     except (OSError, sqlite3.OperationalError) as exc:  # the machine said no: not a bug
         if STATE["verbose"]:
-            console.print_exception()
+            print_traceback()
         fail(os_error_line(exc))
     except _INTERRUPTS:
         result = 130

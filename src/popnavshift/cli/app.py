@@ -91,9 +91,29 @@ def configure_logging(verbose: bool) -> None:
         logger.removeHandler(old)
     handler = RichHandler(console=console, markup=False, show_path=False, show_time=verbose)
     handler.popnavshift_cli = True  # type: ignore[attr-defined]
-    handler.addFilter(RedactingFilter())
+    handler.addFilter(TerminalFilter())
     logger.addHandler(handler)
     logger.setLevel(logging.INFO if verbose else logging.WARNING)
+
+
+class TerminalFilter(RedactingFilter):
+    """Redacts each record's message and writes its control characters as their codes: a
+    server's error text, logged under ``-v``, must not drive the terminal either."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        super().filter(record)
+        record.msg = printable(str(record.msg))
+        return True
+
+
+def print_traceback() -> None:
+    """The current exception's traceback (``-v``), every line escaped and redacted: its
+    message may be a server's text (an OSC or a screen clear in an error body)."""
+    import traceback
+
+    text = redact("".join(traceback.format_exc()))
+    console.print(printable(text, lines=True), markup=False, highlight=False,
+                  soft_wrap=True)
 
 
 def folder(path: Path) -> Path:

@@ -53,6 +53,17 @@ def _respondent_options(api_key_env: str | None, **given: Any) -> dict[str, Any]
     return opts
 
 
+def json_option(name: str, text: str | None) -> Any:
+    """The JSON value of option ``name`` (None when not given); ConfigError naming it."""
+    if text is None:
+        return None
+    try:
+        return json.loads(text)
+    except ValueError as exc:
+        raise ConfigError(f"{name}: not JSON ({exc})",
+                          hint=f"""e.g. {name} '{{"cache_prompt": false}}'""") from None
+
+
 def _opt(help_: str, **kw: Any) -> Any:
     return typer.Option(help=help_, rich_help_panel="LLM respondents", **kw)
 
@@ -191,8 +202,24 @@ def probe(
     ] = None,
     deadline: Annotated[
         float | None,
-        _opt("Most seconds one request may take, retries and waits included.",
+        _opt("Most seconds the whole probe stage may take: the model check, every call "
+             "and wait, calls in flight; what was answered is cached.",
              callback=finite_range(0, above=True)),
+    ] = None,
+    extra_body: Annotated[
+        str | None,
+        _opt("JSON object of server-specific request fields, e.g. '{\"cache_prompt\": "
+             "false}' for reproducible llama.cpp answers (docs/llm.md).")
+    ] = None,
+    model_sha256: Annotated[
+        str | None,
+        _opt("sha256 of the served model file, when you know it: part of the model's "
+             "identity in the cache and the records.")
+    ] = None,
+    fingerprint: Annotated[
+        bool | None,
+        _opt("Ask the fixed canary prompts first, so a different model behind the same name "
+             "is detected (default on).")
     ] = None,
     matched_n: Annotated[
         int, typer.Option(min=1, help="Matched sample size (deadline re-ask).")
@@ -214,6 +241,8 @@ def probe(
         timeout=timeout, max_retries=max_retries, max_reasks=max_reasks, max_tokens=max_tokens,
         ready_timeout=ready_timeout, max_consecutive_failures=max_failures,
         max_retry_after=max_retry_after, deadline=deadline,
+        extra_body=json_option("--extra-body", extra_body), model_sha256=model_sha256,
+        fingerprint=fingerprint,
     )
     if respondent == "rule":
         opts = {k: v for k, v in opts.items() if k == "seed"}

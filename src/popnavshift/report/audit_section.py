@@ -9,12 +9,15 @@ from typing import Any
 import pandas as pd
 
 from ..analysis.audit import rho_text
+from ..analysis.audit_power import POWER
+from ..analysis.audit_power import USABLE as USABLE_EFFECTS
 from ..analysis.audit_verdict import (
     ALPHA,
     MIN_DISTINCT_SHARE,
     MIN_EXCESS_R2,
     MIN_ICC,
     MIN_URGENCY_SHIFT,
+    UNDECIDED,
     USABLE,
 )
 from .blocks import Cell, Section, fmt, para, pct, table
@@ -53,6 +56,11 @@ def answer_flag(tables: dict[str, pd.DataFrame]) -> dict[str, Any] | None:
     if first is None or first.empty or first["verdict"].iloc[0] == USABLE:
         return None
     r = first.iloc[0]
+    if r["verdict"] == UNDECIDED:
+        return para(f"Read the rates below with care: the respondent audit could not tell "
+                    f"whether the respondent whose answers built these populations "
+                    f"({r['name']}, {r['model']}) follows the persona — {r['reasons']}. Every "
+                    "population compared below is built from its answers.", "warn")
     return para(f"Read the rates below with care: the respondent whose answers built these "
                 f"populations ({r['name']}, {r['model']}) is {r['verdict'].upper()} by the "
                 f"respondent audit — {r['reasons']}. Every population compared below is built "
@@ -75,7 +83,13 @@ METHOD = (f"Computed from the study's own answer tables, nothing asked again. An
           f"direction; with two or more samples per persona, also a block item, the action "
           f"score or a motion parameter whose test–retest ICC is below {MIN_ICC:g}, or a "
           f"server at temperature 0 whose samples differ (not reproducible). With one sample "
-          f"per persona, test–retest is not measured (--samples 2 measures it).")
+          f"per persona, test–retest is not measured (--samples 2 measures it). Each check "
+          f"states the smallest effect it detects with {POWER:.0%} power at this number of "
+          f"personas and samples; a check that fails without the power to see a usable "
+          f"respondent's effect (R² {USABLE_EFFECTS['sensitivity']:.2f}, ρ "
+          f"{USABLE_EFFECTS['direction']:.1f}, an urgency shift of one level, ICC "
+          f"{USABLE_EFFECTS['retest']:.2f}) makes the verdict '{UNDECIDED}', with the size "
+          f"it needs, never 'weak' (docs/analysis.md §11).")
 
 
 def audit_section(tables: dict[str, pd.DataFrame]) -> Section:
@@ -107,10 +121,11 @@ def audit_section(tables: dict[str, pd.DataFrame]) -> Section:
                          "" if spr is None else fmt(spr["entropy_bits"]),
                          "" if spr is None else f"{spr['modal']} ({pct(spr['modal_share'])})",
                          fmt(x.r2), fmt(x.null_mean), fmt(x.excess, "{:+.3f}"),
-                         fmt(x.p_value, "{:.3f}"),
+                         fmt(x.p_value, "{:.3f}"), fmt(getattr(x, "mde", None)),
                          Cell("yes" if x.sensitive else "no", "ok" if x.sensitive else "bad")])
         s.blocks.append(table(["Answer / parameter", "Kind", "Levels used", "Entropy (bits)",
-                               "Modal (share)", "R²", "Null R²", "Excess", "p", "Sensitive"],
+                               "Modal (share)", "R²", "Null R²", "Excess", "p",
+                               "Smallest detectable R²", "Sensitive"],
                               rows, caption=f"{_who(r)}: spread and persona sensitivity",
                               csv="audit_sensitivity", collapsed=True))
     _directions(s, tables.get("audit_directions"))
