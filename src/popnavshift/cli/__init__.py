@@ -31,7 +31,9 @@ from . import (  # noqa: F401  (register the commands)
     simulation,
     study,
 )
-from .app import STATE, app, say
+from .app import STATE, app, reflow_help, say
+
+reflow_help(app)
 
 INTERRUPTED = "[yellow]interrupted[/]: finished work is kept; run the same command to resume"
 

@@ -3,21 +3,24 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
-import pandas as pd
 import typer
 from rich.table import Table
 
-from ..analysis.audit import rho_text
 from ..errors import ConfigError
 from ..progress import console
 from .app import app, say
+
+if TYPE_CHECKING:  # the analysis stack is imported by the command, not by --help
+    import pandas as pd
 
 VERDICT_STYLE = {"usable": "green", "weak": "yellow", "not persona-sensitive": "red"}
 
 
 def _num(x: Any, pattern: str = "{:.2f}") -> str:
+    import pandas as pd
+
     return "–" if pd.isna(x) else pattern.format(x)
 
 
@@ -61,6 +64,7 @@ def audit(
     or not persona-sensitive: its answers carry no more of the persona
     than a shuffle, and the populations built from them are artifacts.
     Thresholds and reasons: docs/analysis.md §11.
+
     Example: popnavshift audit study --strict
     """
     from ..analysis.audit import ANSWER_TARGETS
@@ -90,11 +94,15 @@ def audit(
 
 
 def _rows(t: dict[str, pd.DataFrame], name: str, role: str) -> pd.DataFrame:
+    import pandas as pd
+
     df = t.get(f"audit_{name}", pd.DataFrame())
     return df[df["respondent"] == role] if not df.empty else df
 
 
 def _print_respondent(t: dict[str, pd.DataFrame], r) -> None:
+    from ..analysis.audit import rho_text
+
     console.rule(f"{r.respondent} respondent: {say(r.name)} ({say(r.model)})")
     console.print(f"{r.personas} personas; {r.answer_rows} distinct answer rows for "
                   f"{r.persona_records} distinct persona records", highlight=False)

@@ -10,7 +10,6 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
-from ..engine.lock import study_lock
 from ..errors import ConfigError
 from ..progress import console
 from .app import Out, app, finite_range, folder, say
@@ -103,6 +102,7 @@ def personas(
     From a release, minors (by age_bracket) are never sampled; personas.json records
     what each step dropped and the source mix.
     """
+    from ..engine.lock import study_lock
     from ..engine.runner import run_stage
     from ..pipeline import run_personas
 
@@ -205,6 +205,7 @@ def probe(
     pressure set to Deadline. Network respondents cache in OUT/cache/llm.sqlite,
     so a second run makes no calls. Invalid records are listed, never dropped.
     """
+    from ..engine.lock import study_lock
     from ..engine.runner import run_stage
 
     out = folder(out)
@@ -248,6 +249,7 @@ def profiles(
     ] = None,
 ) -> None:
     """Map responses to the 7 motion parameters; write profiles.parquet."""
+    from ..engine.lock import study_lock
     from ..engine.runner import run_stage
 
     out = folder(out)
@@ -268,6 +270,7 @@ def populations(
     seed: Annotated[int, typer.Option(min=0, help="Seed of the matched sample.")] = 0,
 ) -> None:
     """Build the 8 population conditions; write populations.parquet and profile figures."""
+    from ..engine.lock import study_lock
     from ..engine.runner import run_stage
 
     out = folder(out)

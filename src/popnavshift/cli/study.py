@@ -12,7 +12,18 @@ from rich.table import Table
 
 from ..errors import InputError
 from ..progress import console
-from .app import MAX_WORKERS, app, check_workers, default_folder, folder, say, stdout
+from .app import (
+    MAX_WORKERS,
+    WIDE,
+    app,
+    check_workers,
+    default_folder,
+    folder,
+    indented,
+    prose,
+    say,
+    stdout,
+)
 
 StudyArg = Annotated[
     str | None,
@@ -75,25 +86,44 @@ def plan(
             f"{c['total']:,}",
         )
     stdout.print(t)
-    stdout.print("'distinct' is what a run executes: parts share identical runs.")
-    stdout.print(_pending_text(target, pending), highlight=False)
+    prose("'distinct' is what a run executes: parts share identical runs.")
+    prose(_pending_text(target, pending))
     if advice is None:
-        stdout.print(f"power: no estimate yet ({say(pilot)} has no report). Run a "
-                      "pilot, e.g. `popnavshift run pilot` (the matched pair and its swap null "
-                      "on 2 seed sets), then `popnavshift plan "
-                      f"{say(study or 'paper')} --from study-pilot`.", highlight=False)
+        prose(f"power: no estimate yet ({say(pilot)} has no report). Run a "
+              "pilot, e.g. `popnavshift run pilot` (the matched pair and its swap null "
+              "on 2 seed sets), then `popnavshift plan "
+              f"{say(study or 'paper')} --from study-pilot`.")
         return
-    p = Table("comparison", "metric", "rule", "excess", "verdict now", "what would decide it",
-              title=f"power (from {say(pilot)})")
+    print_advice(advice, f"power (from {say(pilot)})")
+    prose("what would decide it: the fewest seed sets and null replicates that decide the "
+          "verdict with 80% power if the excess stays at its estimate, with the null's "
+          "spread falling with seed sets as the pilot's own replicate curve measured; "
+          "add them as `seeds:` and `replicates:` to the parts that run the comparison "
+          "and its null.")
+
+
+def print_advice(advice, title: str) -> None:
+    """The power table: a grid on a wide terminal; on a narrower one, a line per row
+    (comparison · metric · rule: excess, verdict) and, for an undecided one, what would
+    decide it below, indented."""
+    if stdout.width >= WIDE:
+        p = Table("comparison", "metric", "rule", "excess", "verdict now",
+                  "what would decide it", title=title)
+        for r in advice.itertuples(index=False):
+            p.add_row(say(r.comparison), say(r.metric), say(r.rule),
+                      f"{100 * r.excess:+.1f} pp", say(r.verdict), say(advice_text(r)))
+        stdout.print(p)
+        return
+    stdout.print(f"[bold]{title}[/]", highlight=False)
     for r in advice.itertuples(index=False):
-        p.add_row(say(r.comparison), say(r.metric), say(r.rule), f"{100 * r.excess:+.1f} pp",
-                  say(r.verdict), say(advice_text(r)))
-    stdout.print(p)
-    stdout.print("what would decide it: the fewest seed sets and null replicates that decide the "
-                  "verdict with 80% power if the excess stays at its estimate, with the null's "
-                  "spread falling with seed sets as the pilot's own replicate curve measured; "
-                  "add them as `seeds:` and `replicates:` to the parts that run the comparison "
-                  "and its null.", highlight=False)
+        head = (f"{say(r.comparison)} · {say(r.metric)} · {say(r.rule)}: "
+                f"{100 * r.excess:+.1f} pp, {say(r.verdict)}")
+        decide = advice_text(r)
+        if decide == "decided":
+            prose(f"{head} (decided)")
+        else:
+            prose(head)
+            indented(decide)
 
 
 def _pending(study, folder: Path):
@@ -179,8 +209,10 @@ def calibrate(
     A placebo takes one null replicate as if it were the observed populations and the other
     replicates as its null: no population effect, so every claim is false. First the
     headline table as the report decides it (all its rates together), then each test.
+
     Status: 'within' (the interval reaches down to the nominal level and rules out twice
     it), 'above nominal', or 'too few placebos to tell'. Exit 1 if the study ran no null.
+
     Example: `popnavshift calibrate study`.
     """
     from ..analysis.calibrate import TESTS
