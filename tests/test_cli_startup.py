@@ -65,7 +65,8 @@ def test_help_version_and_usage_errors_import_no_analysis_stack():
 
 def test_a_misspelt_controller_fails_with_only_navground_core_loaded():
     lines = [["evaluate", "hrvo"], ["simulate", "-e", "x", "-c", "reactve"],
-             ["compare", "reactive", "Orca"], ["evaluate", "reactive", "--baselines", "socialforce"]]
+             ["compare", "reactive", "Orca"],
+             ["evaluate", "reactive", "--baselines", "socialforce"]]
     results = _probe(lines, tuple(h for h in HEAVY if h not in ("navground", "popnavshift.sim")))
     assert [code for _, code, _ in results[1:]] == [2, 2, 2, 2]
     assert [(line, mods) for line, _, mods in results if mods] == []

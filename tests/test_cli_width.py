@@ -10,8 +10,9 @@ import os
 import subprocess
 import sys
 
-from forked_cli import run_cli
 from rich.cells import cell_len
+
+from forked_cli import run_cli
 
 COLUMNS = 80
 ENV = {**os.environ, "COLUMNS": str(COLUMNS)}

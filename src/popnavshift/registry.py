@@ -12,8 +12,8 @@ Each pluggable kind has one :class:`Registry`, next to its contract:
 1. a registered name (``reactive``, ``orca``, ``rule``, ``A``); an entry may be the
    factory itself or a ``"package.module:Attr"`` string imported on first use;
 2. the name of an entry point in the group ``popnavshift.<kind>s`` of an installed
-   package (looked up again by name on a miss, so a package installed after the
-   first lookup is found);
+   package, imported when first made (looked up again by name on a miss, so a package
+   installed after the first lookup is found);
 3. a Python object ``package.module:Attr``.
 
 A miss raises :class:`UnknownNameError` with a did-you-mean; an object that is not

@@ -9,7 +9,9 @@ codes, :func:`.app.printable`), and redacted
 (:mod:`popnavshift.redact`). Everything else is a bug and shows a traceback.
 Commands live in :mod:`.population` (personas → populations), :mod:`.simulation`
 (episodes, simulate, replay, bench), :mod:`.study` (plan, run, report) and :mod:`.audit`
-(the respondent audit).
+(the respondent audit). Those modules import only typer, rich and the first layer at their
+top, and each command what it needs when it runs, so that ``--help``, ``--version`` and a
+usage error start at once (tests/test_cli_startup.py checks it).
 """
 
 from __future__ import annotations

@@ -177,8 +177,8 @@ def _print_table(spec, study: Path | None) -> None:
         title = f"{study / spec.file} · {meta.metadata.num_rows} rows"
     undeclared = [n for n in present or [] if n not in spec.names]
     if out.width < WIDE:  # a narrow terminal: one short block per column, not a 7-column grid
-        out.print(Text(title, style="bold"), soft_wrap=False)  # wrapped at the width
-        out.print(Text(f"one row per {spec.doc[4:]}"), soft_wrap=False)
+        out.print(Text(title, style="bold"))  # a path: whole
+        out.print(Text(f"one row per {spec.doc[4:]}"), soft_wrap=False)  # wrapped
         for c in spec.columns:
             head = " · ".join(x for x in (c.name, DTYPES[c.kind], c.unit, role(spec, c),
                                           f"→ {c.refers}" if c.refers else "") if x)
