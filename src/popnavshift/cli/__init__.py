@@ -102,16 +102,15 @@ def os_error_line(exc: BaseException) -> str:
 def _usage_errors() -> tuple[tuple[type[BaseException], ...], tuple[type[BaseException], ...]]:
     """(usage errors, aborts) of the installed typer: recent typer vendors its own click
     (``typer._click``, whose exceptions derive from ``typer.TyperException``), older
-    ones raise click's; catch both so a usage error is never a traceback."""
+    ones raise click's; catch both so a usage error is never a traceback. An older typer
+    has imported click already; a recent one does not, and importing it would only slow
+    the start."""
     usage: list[type[BaseException]] = [typer.TyperException]
     aborts: list[type[BaseException]] = [typer.Abort]
-    try:
-        import click
-
+    click = sys.modules.get("click")
+    if click is not None:
         usage.append(click.exceptions.ClickException)
         aborts.append(click.exceptions.Abort)
-    except ImportError:  # pragma: no cover - typer without click
-        pass
     return tuple(usage), tuple(aborts)
 
 
