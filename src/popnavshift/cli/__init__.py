@@ -8,7 +8,8 @@ the user or a server is escaped before rich renders it (control characters as th
 codes, :func:`.app.printable`), and redacted
 (:mod:`popnavshift.redact`). Everything else is a bug and shows a traceback.
 Commands live in :mod:`.population` (personas → populations), :mod:`.simulation`
-(episodes, simulate, replay, bench), :mod:`.study` (plan, run, report) and :mod:`.audit`
+(episodes, simulate, replay, bench), :mod:`.plan`, :mod:`.study` (calibrate, run, report),
+:mod:`.evaluate` (evaluate, compare), :mod:`.data` (show-prompt, describe) and :mod:`.audit`
 (the respondent audit). Those modules import only typer, rich and the first layer at their
 top, and each command what it needs when it runs, so that ``--help``, ``--version`` and a
 usage error start at once (tests/test_cli_startup.py checks it).
@@ -29,6 +30,7 @@ from . import (  # noqa: F401  (register the commands)
     audit,
     data,
     evaluate,
+    plan,
     population,
     simulation,
     study,

@@ -40,6 +40,10 @@ STATE: dict[str, Any] = {"verbose": False}
 stdout = Console(soft_wrap=True, highlight=False)
 
 Out = Annotated[Path, typer.Option("--out", "-o", help="Study folder to write into.")]
+StudyArg = Annotated[
+    str | None,
+    typer.Argument(help="A built-in study (paper, quick) or a study YAML file. Default: paper."),
+]
 #: more worker processes than this is a typo, not a machine (each holds ~300 MB)
 MAX_WORKERS = 512
 #: columns a table of several text columns needs to stay readable; a narrower terminal
