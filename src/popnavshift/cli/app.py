@@ -149,8 +149,9 @@ def say(text: object, lines: bool = False) -> str:
 
 def prose(text: str, console: Console = stdout) -> None:
     """Print ``text`` (markup, data already passed through :func:`say`) wrapped at the
-    terminal's width: the consoles keep a line whole by default, so that an id or a path
-    is never cut, which leaves a sentence as wide as it is long."""
+    terminal's width, between words (a word longer than a line, a deep path, is folded):
+    the consoles keep a line whole by default, so that an id in a table is never cut,
+    which leaves a sentence as wide as it is long."""
     console.print(text, soft_wrap=False, highlight=False)
 
 
