@@ -16,7 +16,7 @@ from popnavshift.errors import UnknownNameError, close_names
 #: what a command imports when it runs, never before: the analysis stack and the simulator
 HEAVY = ("scipy", "pandas", "pyarrow", "numba", "matplotlib", "navground",
          "popnavshift.analysis", "popnavshift.engine", "popnavshift.report", "popnavshift.sim",
-         "popnavshift.access", "popnavshift.pipeline")
+         "popnavshift.read", "popnavshift.design", "popnavshift.pipeline")
 
 #: runs each command line (argv lists, from stdin) through ``popnavshift.cli.main`` in one
 #: fresh interpreter and prints, per command line, its exit code and the heavy modules
