@@ -3,22 +3,25 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
-import pandas as pd
 import typer
 from rich.table import Table
 
-from ..analysis.audit import rho_text
 from ..errors import ConfigError
 from ..progress import console
 from .app import app, say, stdout
+
+if TYPE_CHECKING:  # the analysis stack is imported by the command, not by --help
+    import pandas as pd
 
 VERDICT_STYLE = {"usable": "green", "weak": "yellow", "not persona-sensitive": "red",
                  "not enough personas to tell": "yellow"}
 
 
 def _num(x: Any, pattern: str = "{:.2f}") -> str:
+    import pandas as pd
+
     return "–" if pd.isna(x) else pattern.format(x)
 
 
@@ -82,8 +85,9 @@ def audit(
     its first N personas are asked with its respondent, audited, and the
     full study's probe stage projected from the measured pace.
 
-    Example: popnavshift audit study --strict;
-    popnavshift audit my-study.yaml --pilot 30 --samples 2
+    Example: popnavshift audit study --strict
+
+    Example: popnavshift audit my-study.yaml --pilot 30 --samples 2
     """
     from ..analysis.audit import ANSWER_TARGETS
     from ..analysis.audit_verdict import MIN_PERMUTATIONS, audit_tables
@@ -168,11 +172,15 @@ def _duration(seconds: float) -> str:
 
 
 def _rows(t: dict[str, pd.DataFrame], name: str, role: str) -> pd.DataFrame:
+    import pandas as pd
+
     df = t.get(f"audit_{name}", pd.DataFrame())
     return df[df["respondent"] == role] if not df.empty else df
 
 
 def _print_respondent(t: dict[str, pd.DataFrame], r) -> None:
+    from ..analysis.audit import rho_text
+
     stdout.rule(f"{r.respondent} respondent: {say(r.name)} ({say(r.model)})")
     stdout.print(f"{r.personas} personas; {r.answer_rows} distinct answer rows for "
                   f"{r.persona_records} distinct persona records", highlight=False)

@@ -10,7 +10,6 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
-from ..engine.lock import study_lock
 from ..errors import ConfigError
 from ..progress import console
 from .app import Out, app, finite_range, folder, say
@@ -114,6 +113,7 @@ def personas(
     From a release, minors (by age_bracket) are never sampled; personas.json records
     what each step dropped and the source mix.
     """
+    from ..engine.lock import study_lock
     from ..engine.runner import run_stage
     from ..pipeline import run_personas
 
@@ -232,6 +232,7 @@ def probe(
     pressure set to Deadline. Network respondents cache in OUT/cache/llm.sqlite,
     so a second run makes no calls. Invalid records are listed, never dropped.
     """
+    from ..engine.lock import study_lock
     from ..engine.runner import run_stage
 
     out = folder(out)
@@ -277,6 +278,7 @@ def profiles(
     ] = None,
 ) -> None:
     """Map responses to the 7 motion parameters; write profiles.parquet."""
+    from ..engine.lock import study_lock
     from ..engine.runner import run_stage
 
     out = folder(out)
@@ -297,6 +299,7 @@ def populations(
     seed: Annotated[int, typer.Option(min=0, help="Seed of the matched sample.")] = 0,
 ) -> None:
     """Build the 8 population conditions; write populations.parquet and profile figures."""
+    from ..engine.lock import study_lock
     from ..engine.runner import run_stage
 
     out = folder(out)
