@@ -24,10 +24,10 @@ class Creep(Reactive):
 '''
 CONTROLLER: Edits = {
     "sim/controllers/creep.py": [("", CREEP)],
-    "sim/controllers/builtin.py": [("from . import early_yield, reactive",
-                                    "from . import creep, early_yield, reactive"),
-                                   ('    "robot_orca": RobotORCA,\n',
-                                    '    "robot_orca": RobotORCA,\n    "creep": creep.Creep,\n')],
+    "sim/controllers/builtin.py": [
+        ('    "robot_orca": "popnavshift.sim.controllers.robot_orca:RobotORCA",\n',
+         '    "robot_orca": "popnavshift.sim.controllers.robot_orca:RobotORCA",\n'
+         '    "creep": "popnavshift.sim.controllers.creep:Creep",\n')],
 }
 
 #: "A population condition": a selector in _SELECTORS and its name in POPULATIONS.

@@ -48,7 +48,7 @@ def quick(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess,
 def test_compare_writes_one_page_and_one_table_with_a_row_per_controller(quick):
     folder, first, _ = quick
     assert first.returncode == 0, first.stderr
-    assert "HRVO: 0 runs reused, 40 to run" in first.stderr
+    assert "HRVO on main: 0 runs reused, 40 to run" in first.stderr
     out = folder / "compare"
     assert sorted(p.name for p in out.iterdir()) == [
         "compare.csv", "compare.html", "compare.json", "compare.md", "compare.png", "compare.tex"]
@@ -91,7 +91,7 @@ def test_a_second_compare_reads_the_cards_and_simulates_nothing(quick):
     _, _, second = quick
     assert second.returncode == 0, second.stderr
     assert second.stderr.count("card reused") == len(FOUR)
-    assert "HRVO: 40 runs reused, 0 to run" in second.stderr
+    assert "HRVO on main: 40 runs reused, 0 to run" in second.stderr
     assert "160 runs reused, 0 executed" in second.stderr
 
 

@@ -220,7 +220,7 @@ def test_a_study_without_no_robot_runs_or_a_baseline_gets_them_run_once(tmp_path
     logs: list[str] = []
     ev = evaluate("HL", study, tmp_path / "lean", baselines=("robot_orca", "reactive"),
                   workers=1, show_progress=False, log=logs.append)
-    assert "none, HL, reactive: 0 runs reused, 12 to run" in logs
+    assert "HL, none, reactive on main: 0 runs reused, 12 to run" in logs
     assert ev.counts == {"runs": 16, "controller_runs": 4, "controller_errors": 0}
     again = evaluate("HL", study, tmp_path / "lean", baselines=("robot_orca", "reactive"),
                      workers=1, show_progress=False)

@@ -110,7 +110,11 @@ def respondent_from(name: str, options: dict[str, Any], folder: Path) -> Respond
     opts = dict(options)
     if RESPONDENTS.resolve(name).uses_cache:
         opts.setdefault("cache_path", folder / RESPONSE_CACHE)
-    return RESPONDENTS.make(name, **opts)
+    respondent = RESPONDENTS.make(name, **opts)
+    validate = getattr(respondent, "validate", None)
+    if callable(validate):  # a bad option is named before any table is read or call made
+        validate()
+    return respondent
 
 
 def run_responses(folder: Path, s: PopulationSettings, show_progress: bool = True) -> pd.DataFrame:

@@ -12,8 +12,8 @@ Each pluggable kind has one :class:`Registry`, next to its contract:
 1. a registered name (``reactive``, ``orca``, ``rule``, ``A``); an entry may be the
    factory itself or a ``"package.module:Attr"`` string imported on first use;
 2. the name of an entry point in the group ``popnavshift.<kind>s`` of an installed
-   package (looked up again by name on a miss, so a package installed after the
-   first lookup is found);
+   package, imported when first made (looked up again by name on a miss, so a package
+   installed after the first lookup is found);
 3. a Python object ``package.module:Attr``.
 
 A miss raises :class:`UnknownNameError` with a did-you-mean; an object that is not
@@ -31,7 +31,7 @@ import re
 import types
 import typing
 from collections.abc import Callable, Iterator
-from importlib.metadata import entry_points
+from importlib.metadata import EntryPoint, entry_points
 from typing import Any, Generic, TypeVar
 
 from .errors import ConfigError, UnknownNameError
@@ -115,12 +115,13 @@ class Registry(Generic[T]):
         return _add(factory) if factory is not None else _add
 
     def _load_entry_points(self) -> None:
+        """Add the group's entry points by name; each is imported when first made, so
+        listing the names (a did-you-mean, ``--help``) imports no outside package."""
         if self._loaded_entry_points:
             return
         self._loaded_entry_points = True
         for ep in entry_points(group=self.group):
-            if ep.name not in self._entries:
-                self._entries[ep.name] = self._load_entry_point(ep)
+            self._entries.setdefault(ep.name, ep)
 
     def _load_entry_point(self, ep: Any) -> Any:
         try:
@@ -136,18 +137,25 @@ class Registry(Generic[T]):
     def get(self, name: str) -> Any:
         """The entry registered as ``name``, loading an entry point of that name installed
         since the group was first read (raises UnknownNameError with a hint)."""
-        self._load_entry_points()
-        if name not in self._entries:
-            for ep in entry_points(group=self.group, name=name):
-                self._entries[name] = self._load_entry_point(ep)
-                break
-        try:
-            entry = self._entries[name]
-        except KeyError:
-            raise UnknownNameError(self.kind, name, self._entries) from None
+        self.check_name(name)
+        entry = self._entries[name]
+        if isinstance(entry, EntryPoint):  # an outside package's, imported now
+            entry = self._entries[name] = self._load_entry_point(entry)
         if isinstance(entry, str):  # "package.module:Attr", imported now
             entry = self._entries[name] = load_object(entry, self.kind)
         return entry
+
+    def check_name(self, name: str) -> None:
+        """UnknownNameError (with a did-you-mean, case aside) unless ``name`` is registered
+        or an entry point of the group, one installed since the group was first read
+        included. Imports nothing: a command checks its names before its heavy work."""
+        self._load_entry_points()
+        if name not in self._entries:
+            for ep in entry_points(group=self.group, name=name):
+                self._entries[name] = ep
+                break
+        if name not in self._entries:
+            raise UnknownNameError(self.kind, name, self._entries)
 
     def resolve(self, spec: str) -> Any:
         """The registered entry, entry point or ``package.module:Attr`` object ``spec``

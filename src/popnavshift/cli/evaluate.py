@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from ..progress import console
-from .app import MAX_WORKERS, app, check_workers, default_folder, say
+from .app import MAX_WORKERS, app, check_controllers, check_workers, default_folder, say
 from .simulation import ParamOpt, parse_params
 
 #: The study a controller is evaluated against (shared by evaluate and compare).
@@ -77,6 +77,9 @@ def evaluate(
 
     Example: popnavshift evaluate my_pkg.controller:MyBehavior --study quick
     """
+    given = None if baselines is None else tuple(
+        b.strip() for b in baselines.split(",") if b.strip())
+    check_controllers(controller, *(given or ()))  # a misspelt name fails at once
     from ..controller_ids import controller_id
     from ..engine.lock import study_lock
     from ..engine.ownership import claim_folder
@@ -92,7 +95,7 @@ def evaluate(
     base = folder(study_dir or default_dir)
     params = parse_params(param)
     identity = controller_id(controller, params) if params else controller
-    names = _baselines(baselines, BASELINES)
+    names = BASELINES if given is None else given
     with study_lock(base):  # the baseline study's folder gets runs and the card: one writer
         claim_folder(base, s, force=None, option="--study-dir")
         ev = run_evaluation(identity, s, base, out, baselines=names, workers=workers,
@@ -153,6 +156,7 @@ def compare(
 
     Example: popnavshift compare reactive early_yield robot_orca HRVO
     """
+    check_controllers(*controllers)  # a misspelt name fails at once
     from ..engine.lock import study_lock
     from ..engine.ownership import claim_folder
     from ..evaluate import BASELINES

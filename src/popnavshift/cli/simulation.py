@@ -11,7 +11,7 @@ from rich.table import Table
 
 from ..errors import ConfigError, UnknownNameError
 from ..progress import console
-from .app import app, say, stdout
+from .app import app, check_controllers, prose, say, stdout
 
 StudyDir = Annotated[
     Path,
@@ -107,6 +107,7 @@ def _controller(name: str, params: dict[str, Any]) -> str:
         if params:
             raise ConfigError("--param makes no sense with --controller none")
         return name
+    check_controllers(name)  # a misspelt name fails before the study folder is read
     return controller_id(name, params)  # names, entry points, package.module:Class
 
 
@@ -237,7 +238,7 @@ def bench(
     from ..sim.bench import format_bench, run_bench
 
     result = run_bench(n_per_scene=n_per_scene, repeats=repeats, profile=profile)
-    console.print(say(format_bench(result)))
+    prose(say(format_bench(result), lines=True))  # the command's output: stdout, its lines
     if json_path is not None:
         from ..io import write_json
 

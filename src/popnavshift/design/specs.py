@@ -30,7 +30,7 @@ class RespondentSpec(Strict):
     options: dict[str, Any] = Field(default_factory=dict)
     #: independent samples per persona and variant, each sent with its own seed; the
     #: profiles read their per-item median (docs/method.md), the audit their test–retest
-    samples: int = Field(1, ge=1, le=100)
+    samples: int = Field(1, ge=1, le=100, strict=True)  # `true` is not 1
 
     @field_validator("options")
     @classmethod

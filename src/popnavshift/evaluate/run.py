@@ -7,7 +7,8 @@
    navground Behavior) and runs the contract checker on it;
 2. runs the baseline study in ``base_folder`` (``popnavshift run``'s folder),
    which reuses every finished baseline and no-robot run;
-3. plans the controller's runs on the study's evaluated part (``main``) as batches
+3. plans the controller's runs on the study's evaluation parts (:mod:`.runs`: the main
+   part, and the parts of the headline comparisons' nulls) as batches
    of their own, with the batch ids of ``popnavshift run``
    (:func:`popnavshift.engine.batches.batches`): a batch id hashes its run keys, so
    these never change the baseline batches, the stamp of the populations and
@@ -16,8 +17,9 @@
    The same batch executor runs them (:func:`popnavshift.engine.executors.execute`).
    Their shards live in the baseline folder's store (reused by any later
    evaluation of the same controller and code); the compacted tables go to ``out``;
-4. returns the evaluated part's runs and pedestrians, baselines + controller +
-   no-robot, for the card (:mod:`.card`).
+4. returns the evaluation parts' runs and pedestrians, baselines + controller +
+   no-robot, for the card (:mod:`.card`; its robustness verdict, :mod:`.robustness`,
+   on every evaluation part, the rest on the main part).
 
 A run in which the controller raises is recorded as ``controller_error`` (see
 :mod:`popnavshift.engine.worker`); the evaluation goes on.
@@ -37,15 +39,13 @@ import pandas as pd
 from ..analysis import episode_cells
 from ..analysis.replicates import seed_sets
 from ..controller_ids import controller_id, parse_controller_id
-from ..design.plan import plan_study
 from ..design.study import Study
 from ..engine.batch_plan import plan_batches, run_plan
 from ..engine.rebuild import rebuild_run
 from ..engine.runner import run_study
 from ..engine.store import RunStore
 from ..engine.worker import Context
-from ..episodes.specs import all_episodes
-from ..errors import ConfigError, InputError
+from ..errors import ConfigError
 from ..io import write_json
 from ..outputs import FileSet
 from ..paper import PAPER_CONTROLLERS
@@ -53,13 +53,14 @@ from ..pipeline import read_table
 from ..read.access import CARD
 from ..sim.check import ControllerContractError, check_controller
 from ..sim.controllers import CONTROLLERS
-from ..tables import NO_ROBOT, RUN_KEY
+from ..tables import NO_ROBOT
 from ..version import __version__
 from ..viz.replay import render_svg, run_outcome
 from .card import OUTCOME_LABELS, Card, card_tables
 from .card_files import card_folder, card_identity, check_card_settings, check_out
 from .card_page import write_card
 from .export import table_text
+from .runs import card_tables_of, evaluation_parts, main_part_rows, plan_extra
 
 BASELINES: tuple[str, ...] = PAPER_CONTROLLERS  # a card sets a controller beside the paper's
 Tables = tuple[pd.DataFrame, pd.DataFrame]  # runs, pedestrians
@@ -71,8 +72,9 @@ class Evaluation:
     """The evaluated part's tables and how they were obtained.
 
     ``runs`` and ``pedestrians`` hold the no-robot runs, the baselines and the
-    controller on the evaluated part only; ``reused``/``executed`` count runs
-    over both the baseline study and the controller's own batches.
+    controller on the main part only; ``every_runs`` and ``every_pedestrians`` the same
+    on every evaluation part (the null designs included); ``reused``/``executed`` count
+    runs over both the baseline study and the controller's own batches.
     """
 
     controller: str
@@ -89,6 +91,11 @@ class Evaluation:
     executed: int = 0
     seconds: float = 0.0
     counts: dict[str, int] = field(default_factory=dict)
+    #: the evaluation parts (:func:`.runs.evaluation_parts`) and their runs and
+    #: pedestrians (the same controllers): what the robustness verdict is decided on
+    parts: tuple[str, ...] = ()
+    every_runs: pd.DataFrame | None = None
+    every_pedestrians: pd.DataFrame | None = None
 
 
 class _SharedShards(RunStore):
@@ -135,7 +142,7 @@ def evaluate(
     factory = CONTROLLERS.make(identity)
     status = check(factory) if run_check else "skipped"
     say(f"controller {identity}: contract check {status}")
-    part_name, part = study.require_main()
+    part_name, _ = study.require_main()
     base_ids = tuple(b for b in dict.fromkeys(baselines) if b != identity)
     if not base_ids:
         raise ConfigError("evaluate needs at least one baseline other than the controller")
@@ -148,12 +155,19 @@ def evaluate(
     base = run_study(study, base_folder, workers=workers, show_progress=show_progress)
     say(f"baseline study {study.name} ({base_folder}): {base.reused:,} runs reused, "
         f"{base.executed:,} executed")
-    extra = tuple(c for c in (identity, *base_ids) if c not in part.controllers)
-    own, reused, executed = _run_extra(study, part_name, extra, base_folder, out, workers,
+    parts = evaluation_parts(study)
+    compared = (*base_ids, identity)
+    own, reused, executed = _run_extra(study, parts, compared, base_folder, out, workers,
                                        show_progress, say)
-    runs, peds = _tables(study, part_name, (*base_ids, identity), base_folder, own)
+    sources = [(pd.read_parquet(base_folder / "runs.parquet"),
+                pd.read_parquet(base_folder / "pedestrians.parquet")), *own]
+    every_runs, every_peds = card_tables_of(study, parts, compared, sources)
+    main = main_part_rows(every_runs, study)
+    runs = every_runs[main].reset_index(drop=True)
+    peds = every_peds[main_part_rows(every_peds, study)].reset_index(drop=True)
     ev = Evaluation(identity, base_ids, study, part_name, base_folder, out, runs, peds,
-                    factory.describe(), status, base.reused + reused, base.executed + executed)
+                    factory.describe(), status, base.reused + reused, base.executed + executed,
+                    parts=parts, every_runs=every_runs, every_pedestrians=every_peds)
     ev.seconds = time.perf_counter() - started
     own = runs[runs["controller"] == identity]
     ev.counts = {"runs": len(runs), "controller_runs": len(own),
@@ -163,52 +177,28 @@ def evaluate(
     return ev
 
 
-def _run_extra(study: Study, part_name: str, controllers: tuple[str, ...], base_folder: Path,
-               out: Path, workers: int, show_progress: bool,
-               say: Log) -> tuple[Tables | None, int, int]:
-    """Plan, run and compact the runs of ``controllers`` (not in the study) on one part,
-    and its no-robot runs if the study has none; returns their (runs, pedestrians)
-    tables, the runs reused and executed."""
-    no_robot = not study.parts[part_name].baseline
-    if not controllers and not no_robot:
-        return None, 0, 0
-    part = study.parts[part_name].model_copy(update={"controllers": controllers,
-                                                     "baseline": no_robot})
-    runs = plan_study(study.model_copy(update={"parts": {part_name: part}}),
-                      all_episodes(seed=study.seed))
+def _run_extra(study: Study, parts: tuple[str, ...], controllers: tuple[str, ...],
+               base_folder: Path, out: Path, workers: int, show_progress: bool,
+               say: Log) -> tuple[list[Tables], int, int]:
+    """Plan, run and compact the runs of ``controllers`` on the evaluation ``parts`` that
+    the study does not run itself (:func:`.runs.plan_extra`); returns their (runs,
+    pedestrians) tables (none when there are none), the runs reused and executed."""
+    runs = plan_extra(study, parts, controllers)
+    if not runs:
+        return [], 0, 0
     store = _SharedShards(base_folder, out)
     populations = read_table(base_folder / "populations.parquet", "populations")
     # the runner's batches and ids: its shards are reused, and it reuses these
     plan = plan_batches(runs, store, populations, study.seed, carry=False)
     n_todo = plan.to_execute
-    say(f"{', '.join((NO_ROBOT,) * no_robot + controllers)}: {plan.reused:,} runs reused, "
+    who = sorted({r.controller for r in runs})
+    say(f"{', '.join(who)} on {', '.join(parts)}: {plan.reused:,} runs reused, "
         f"{n_todo:,} to run")
     out.mkdir(parents=True, exist_ok=True)
     context = Context(populations, study.seed, study.population_specs())
     run_plan(plan, store, context, workers, show_progress=show_progress)
     tables = (pd.read_parquet(out / "runs.parquet"), pd.read_parquet(out / "pedestrians.parquet"))
-    return tables, plan.reused, n_todo
-
-
-def _tables(study: Study, part_name: str, controllers: tuple[str, ...], base_folder: Path,
-            own: Tables | None) -> Tables:
-    """Runs and pedestrians of the evaluated part: its planned keys, taken from the
-    baseline study's tables and the controllers' own."""
-    part = study.parts[part_name].model_copy(update={"controllers": controllers,
-                                                     "baseline": True})
-    planned = plan_study(study.model_copy(update={"parts": {part_name: part}}),
-                         all_episodes(seed=study.seed))
-    keys = pd.DataFrame([r.key for r in planned], columns=list(RUN_KEY))
-    sources = [(pd.read_parquet(base_folder / "runs.parquet"),
-                pd.read_parquet(base_folder / "pedestrians.parquet"))]
-    sources += [own] if own is not None else []
-    runs = pd.concat([r.merge(keys, on=list(RUN_KEY)) for r, _ in sources], ignore_index=True)
-    peds = pd.concat([p.merge(keys, on=list(RUN_KEY)) for _, p in sources], ignore_index=True)
-    if len(runs) != len(keys):
-        raise InputError(f"{base_folder}: {len(keys) - len(runs)} of the {len(keys)} planned "
-                         "runs are missing from the study tables",
-                         hint="run the study again; finished work is kept")
-    return runs, peds
+    return [tables], plan.reused, n_todo
 
 
 def _write_manifest(ev: Evaluation) -> None:
@@ -220,6 +210,7 @@ def _write_manifest(ev: Evaluation) -> None:
         "study": ev.study.name,
         "config_hash": ev.study.config_hash(),
         "part": ev.part,
+        "parts": list(ev.parts),
         "base_folder": str(ev.base_folder.resolve()),
         "counts": ev.counts,
         "timings": {"total_s": round(ev.seconds, 2), "runs_reused": ev.reused,

@@ -9,12 +9,15 @@ from typing import Any
 import pandas as pd
 
 from ..analysis.audit import rho_text
+from ..analysis.audit_power import POWER
+from ..analysis.audit_power import USABLE as USABLE_EFFECTS
 from ..analysis.audit_verdict import (
     ALPHA,
     MIN_DISTINCT_SHARE,
     MIN_EXCESS_R2,
     MIN_ICC,
     MIN_URGENCY_SHIFT,
+    UNDECIDED,
     USABLE,
 )
 from .blocks import Block, Cell, Page, SectionSpec, fmt, para, pct, table
@@ -53,6 +56,11 @@ def answer_flag(tables: dict[str, pd.DataFrame]) -> dict[str, Any] | None:
     if first is None or first.empty or first["verdict"].iloc[0] == USABLE:
         return None
     r = first.iloc[0]
+    if r["verdict"] == UNDECIDED:
+        return para(f"Read the rates below with care: the respondent audit could not tell "
+                    f"whether the respondent whose answers built these populations "
+                    f"({r['name']}, {r['model']}) follows the persona — {r['reasons']}. Every "
+                    "population compared below is built from its answers.", "warn")
     return para(f"Read the rates below with care: the respondent whose answers built these "
                 f"populations ({r['name']}, {r['model']}) is {r['verdict'].upper()} by the "
                 f"respondent audit — {r['reasons']}. Every population compared below is built "
@@ -75,7 +83,13 @@ METHOD = (f"Computed from the study's own answer tables, nothing asked again. An
           f"direction; with two or more samples per persona, also a block item, the action "
           f"score or a motion parameter whose test–retest ICC is below {MIN_ICC:g}, or a "
           f"server at temperature 0 whose samples differ (not reproducible). With one sample "
-          f"per persona, test–retest is not measured (--samples 2 measures it).")
+          f"per persona, test–retest is not measured (--samples 2 measures it). Each check "
+          f"states the smallest effect it detects with {POWER:.0%} power at this number of "
+          f"personas and samples; a check that fails without the power to see a usable "
+          f"respondent's effect (R² {USABLE_EFFECTS['sensitivity']:.2f}, ρ "
+          f"{USABLE_EFFECTS['direction']:.1f}, an urgency shift of one level, ICC "
+          f"{USABLE_EFFECTS['retest']:.2f}) makes the verdict '{UNDECIDED}', with the size "
+          f"it needs, never 'weak' (docs/analysis.md §11).")
 
 
 def _audit(p: Page, v: pd.DataFrame) -> list[Block]:
@@ -103,12 +117,13 @@ def _audit(p: Page, v: pd.DataFrame) -> list[Block]:
                          "" if spr is None else fmt(spr["entropy_bits"]),
                          "" if spr is None else f"{spr['modal']} ({pct(spr['modal_share'])})",
                          fmt(x.r2), fmt(x.null_mean), fmt(x.excess, "{:+.3f}"),
-                         fmt(x.p_value, "{:.3f}"),
+                         fmt(x.p_value, "{:.3f}"), fmt(getattr(x, "mde", None)),
                          Cell("yes" if x.sensitive else "no", "ok" if x.sensitive else "bad")])
         s.append(table(["Answer / parameter", "Kind", "Levels used", "Entropy (bits)",
-                               "Modal (share)", "R²", "Null R²", "Excess", "p", "Sensitive"],
-                              rows, caption=f"{_who(r)}: spread and persona sensitivity",
-                              csv="audit_sensitivity", collapsed=True))
+                        "Modal (share)", "R²", "Null R²", "Excess", "p",
+                        "Smallest detectable R²", "Sensitive"],
+                       rows, caption=f"{_who(r)}: spread and persona sensitivity",
+                       csv="audit_sensitivity", collapsed=True))
     _directions(s, tables.get("audit_directions"))
     _manipulation(s, tables.get("audit_manipulation"))
     _retest(s, v, tables.get("audit_retest"))
@@ -133,10 +148,10 @@ def _retest(s: list[Block], v: pd.DataFrame, g: pd.DataFrame | None) -> None:
                   fmt(getattr(x, "within_var", None), "{:.4f}"),
                   fmt(getattr(x, "between_var", None), "{:.4f}")] for x in rows.itertuples()]
         s.append(table(["Answer / parameter", "Kind", "All samples agree",
-                               "κ / ICC", "Within-persona variance",
-                               "Between-persona variance"], cells,
-                              caption=f"{_who(r)}: test–retest, {r.retest}",
-                              csv="audit_retest", collapsed=True))
+                        "κ / ICC", "Within-persona variance",
+                        "Between-persona variance"], cells,
+                       caption=f"{_who(r)}: test–retest, {r.retest}",
+                       csv="audit_retest", collapsed=True))
 
 
 def _directions(s: list[Block], d: pd.DataFrame | None) -> None:
@@ -147,8 +162,8 @@ def _directions(s: list[Block], d: pd.DataFrame | None) -> None:
              Cell(r.outcome, "ok" if r.outcome == "as expected" else "bad")]
             for r in d.itertuples()]
     s.append(table(["Respondent", "Persona field → answer", "Expected", "Why",
-                           "Spearman ρ [95%]", "Outcome"], rows,
-                          caption="Expected directions", csv="audit_directions"))
+                    "Spearman ρ [95%]", "Outcome"], rows,
+                   caption="Expected directions", csv="audit_directions"))
 
 
 def _manipulation(s: list[Block], m: pd.DataFrame | None) -> None:
@@ -164,9 +179,9 @@ def _manipulation(s: list[Block], m: pd.DataFrame | None) -> None:
                      f"{pct(r.up)} / {pct(r.down)}", pct(r.changed),
                      Cell(r.outcome, "bad" if r.outcome in ("flat", "reversed") else "")])
     s.append(table(["Respondent", "Answer", "Expected", "Deadline − baseline [95%]",
-                           "Up / down", "Changed", "Outcome"], rows,
-                          caption="Matched intervention: the same personas with time pressure "
-                          "set to Deadline (paired)", csv="audit_manipulation"))
+                    "Up / down", "Changed", "Outcome"], rows,
+                   caption="Matched intervention: the same personas with time pressure "
+                   "set to Deadline (paired)", csv="audit_manipulation"))
 
 
 def _agreement(s: list[Block], g: pd.DataFrame | None) -> None:
@@ -177,6 +192,6 @@ def _agreement(s: list[Block], g: pd.DataFrame | None) -> None:
              pct(getattr(r, "within_one", None)),
              f"{stat[r.kind]} {fmt(getattr(r, stat[r.kind], None))}"] for r in g.itertuples()]
     s.append(table(["Answer / parameter", "Kind", "Records", "Agree", "Within one level",
-                           "κ / Spearman ρ / Pearson r"], rows,
-                          caption="Agreement of the two respondents (same persona and variant)",
-                          csv="audit_agreement"))
+                    "κ / Spearman ρ / Pearson r"], rows,
+                   caption="Agreement of the two respondents (same persona and variant)",
+                   csv="audit_agreement"))

@@ -45,6 +45,14 @@ class ControllerRegistry(Registry[Any]):
                 hint="a controller class must subclass navground.core.Behavior, "
                      "or implement build, after_placement and describe")
 
+    def check_name(self, name: str) -> None:
+        """As :meth:`Registry.check_name`, for a controller id (``HRVO{"tau":0.5}`` is
+        checked by its name); a ``package.module:Class`` is checked when it is made
+        (importing it is the check)."""
+        base, _ = parse_controller_id(name)
+        if not is_object_spec(base):
+            super().check_name(base)
+
     def make(self, spec: str, **params: Any) -> Any:
         """A controller factory for a controller id (name, entry point or class spec,
         with optional JSON parameters) and extra ``params``. A registered factory keeps
