@@ -8,9 +8,29 @@ from typing import Annotated
 import typer
 
 from ..progress import console
-from .app import MAX_WORKERS, app, check_controllers, check_workers, default_folder, say
+from .app import (
+    MAX_WORKERS,
+    Replicates,
+    SeedSets,
+    app,
+    check_controllers,
+    check_workers,
+    default_folder,
+    extended,
+    say,
+)
 from .simulation import ParamOpt, parse_params
 
+#: The card's safety threshold (None: the card's default, evaluate.safety.SAFETY_THRESHOLD,
+#: which the help states: tests/test_evaluate_safety.py checks they agree).
+SafetyThreshold = Annotated[
+    float | None,
+    typer.Option(min=0.0, max=1.0, help="Unsafe when a counted failure (pedestrian "
+                 "collisions with the robot moving, wall contacts, controller errors) is "
+                 "above this share of the controller's runs with 95% confidence, safe when "
+                 "every one is below it: the same rule for every controller (default: 0.01, "
+                 "1% of its runs)."),
+]
 #: The study a controller is evaluated against (shared by evaluate and compare).
 BaselineStudy = Annotated[
     str | None,
@@ -61,13 +81,9 @@ def evaluate(
     n_boot: Annotated[int, typer.Option(min=1, max=100_000,
                                         help="Bootstrap resamples for the CIs.")] = 1000,
     seed: Annotated[int, typer.Option(min=0, help="Seed of the bootstrap.")] = 0,
-    safety_threshold: Annotated[
-        float | None,
-        typer.Option(min=0.0, max=1.0, help="Also read unsafe when pedestrian collisions, "
-                     "wall contacts or controller errors exceed this share of the controller's "
-                     "runs, whatever the baselines do (off by default: the verdict compares "
-                     "each failure with the least safe baseline on the same runs)."),
-    ] = None,
+    safety_threshold: SafetyThreshold = None,
+    replicates: Replicates = None,
+    seed_sets: SeedSets = None,
 ) -> None:
     """Evaluate CONTROLLER under every population of a study, next to the baselines.
 
@@ -90,6 +106,7 @@ def evaluate(
 
     check_workers(workers)
     s, default_dir = _baseline_study(study)
+    s = extended(s, replicates, seed_sets)
     if out is not None:  # before anything is made: never the study's folder, and writable
         check_out(out, study_dir or default_dir)
     base = folder(study_dir or default_dir)
@@ -136,16 +153,14 @@ def compare(
     n_boot: Annotated[int, typer.Option(min=1, max=100_000,
                                         help="Bootstrap resamples of the cards.")] = 1000,
     seed: Annotated[int, typer.Option(min=0, help="Seed of the cards' bootstrap.")] = 0,
-    safety_threshold: Annotated[
-        float | None,
-        typer.Option(min=0.0, max=1.0, help="As for evaluate: also read unsafe above this "
-                     "share of a controller's runs (off by default)."),
-    ] = None,
+    safety_threshold: SafetyThreshold = None,
     baselines: Annotated[
         str | None,
         typer.Option(help="Comma-separated controllers each card compares with "
                      "(default: the built-in controllers)."),
     ] = None,
+    replicates: Replicates = None,
+    seed_sets: SeedSets = None,
 ) -> None:
     """Put the robustness cards of several controllers side by side: one page, one table.
 
@@ -166,6 +181,7 @@ def compare(
 
     check_workers(workers)
     s, default_dir = _baseline_study(study)
+    s = extended(s, replicates, seed_sets)
     page = out or (study_dir or default_dir) / "compare" / "compare.html"
     check_page(page, ours=out is None)  # before any work: writable, over nothing else
     base = folder(study_dir or default_dir)

@@ -30,6 +30,7 @@ from ..errors import ConfigError
 from ..hashing import digest, sources_digest
 from ..outputs import check_writable
 from ..read.access import EVALUATE_DIR, EVALUATION, card_intact
+from ..tables import RUN_KEY
 from ..version import __version__
 
 
@@ -91,24 +92,31 @@ def card_code() -> str:
     return digest([__version__, sources_digest("analysis", "evaluate")])
 
 
-def tables_digest(*tables: pd.DataFrame) -> str:
-    """Hex sha256 of the content of ``tables`` (every row and column, in order)."""
+def runs_digest(*folders: Path) -> str:
+    """Hex sha256 of the runs a card can read: the keys and ``run_inputs`` (the digest of
+    each run's own inputs and code, :mod:`popnavshift.engine.run_inputs`) of the study
+    folder's runs and the card's own, as stored. Equal digests, equal runs and pedestrians
+    (a run is a function of its inputs); read from two columns, so a current card is
+    recognised without loading its tables."""
     h = hashlib.sha256()
-    for table in tables:
-        h.update(",".join(map(str, table.columns)).encode() + b"\0")
-        h.update(pd.util.hash_pandas_object(table, index=False).to_numpy().tobytes())
+    for folder in folders:
+        path = Path(folder) / "runs.parquet"
+        if not path.is_file():
+            h.update(b"-\0")
+            continue
+        keys = pd.read_parquet(path, columns=[*RUN_KEY, "run_inputs"])
+        h.update(pd.util.hash_pandas_object(keys, index=False).to_numpy().tobytes())
     return h.hexdigest()
 
 
 def card_identity(controller: str, baselines: Sequence[str], config_hash: str,
-                  tables: tuple[pd.DataFrame, pd.DataFrame], *, n_boot: int, seed: int,
+                  runs: str, *, n_boot: int, seed: int,
                   safety_threshold: float | None) -> dict[str, Any]:
     """Everything the verdict of ``controller``'s card depends on (module doc), as
-    ``card.json`` records it; ``tables``: the runs and pedestrians it is computed on."""
+    ``card.json`` records it; ``runs``: the :func:`runs_digest` of what it reads."""
     return {"controller": controller, "baselines": list(baselines),
             "config_hash": config_hash, "n_boot": n_boot, "seed": seed,
-            "safety_threshold": safety_threshold, "runs": tables_digest(*tables),
-            "code": card_code()}
+            "safety_threshold": safety_threshold, "runs": runs, "code": card_code()}
 
 
 #: how each part of a card's identity is named when it changed

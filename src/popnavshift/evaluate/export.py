@@ -9,6 +9,7 @@ spreadsheet would run as a formula are written safe (:func:`popnavshift.io.csv_t
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +19,7 @@ import pandas as pd
 from ..io import csv_text, write_text
 
 FORMATS: tuple[str, ...] = ("csv", "md", "tex")
+_LABEL = re.compile(r"[^A-Za-z0-9:.-]")  # what a \label may hold: any other character → -
 _TEX = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#",
         "_": r"\_", "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}",
         "^": r"\textasciicircum{}"}
@@ -72,6 +74,18 @@ def to_latex(table: pd.DataFrame, digits: int = 2) -> str:
         lines.append(" & ".join(tex_escape(_cell(v, digits, "--")) for v in row) + r" \\")
     lines += ["\\bottomrule", "\\end{tabular}"]
     return "\n".join(lines) + "\n"
+
+
+def latex_table(table: pd.DataFrame, caption: str, *, label: str, digits: int = 2) -> str:
+    """``table`` as a complete LaTeX ``table`` float: centred, the caption (plain text,
+    escaped here) and label above, the booktabs ``tabular`` scaled to the
+    line width (so it fits any page without an overfull box). Needs ``booktabs`` and
+    ``graphicx``."""
+    body = to_latex(table, digits).rstrip("\n")
+    return ("\\begin{table}[tbp]\n\\centering\n"
+            f"\\caption{{{tex_escape(caption)}}}\n\\label{{{_LABEL.sub('-', label)}}}\n"
+            "\\footnotesize\n\\resizebox{\\linewidth}{!}{%\n"
+            f"{body}%\n}}\n\\end{{table}}\n")
 
 
 def table_text(table: pd.DataFrame, fmt: str, digits: int = 2) -> str:
