@@ -11,7 +11,19 @@ from rich.table import Table
 
 from ..errors import InputError
 from ..progress import console
-from .app import MAX_WORKERS, StudyArg, app, check_workers, default_folder, folder, say, stdout
+from .app import (
+    MAX_WORKERS,
+    Replicates,
+    SeedSets,
+    StudyArg,
+    app,
+    check_workers,
+    default_folder,
+    extended,
+    folder,
+    say,
+    stdout,
+)
 
 
 @app.command()
@@ -165,6 +177,8 @@ def run(
     force: Annotated[bool, typer.Option(
         "--force", help="Write into --out even when it holds another study or other files.")
                      ] = False,
+    replicates: Replicates = None,
+    seed_sets: SeedSets = None,
 ) -> None:
     """Run every stage of a study that is not already done; resumable.
 
@@ -179,7 +193,7 @@ def run(
     from ..episodes.specs import all_episodes
 
     check_workers(workers, executor)
-    s = load_study(study or "paper")
+    s = extended(load_study(study or "paper"), replicates, seed_sets)
     if samples is not None:  # part of the study as run: its config hash and manifest say so
         s = s.model_copy(update={"respondent": s.respondent.model_copy(
             update={"samples": samples})})
