@@ -30,6 +30,7 @@ from ..outputs import FileSet, check_writable
 from ..version import __version__
 from ..viz.style import controller_styles
 from .card import METRIC_LABELS
+from .card_files import folder_name
 from .card_page import png_bytes, population_panel
 from .compare import COMPARE_METRICS, Comparison
 from .export import latex_table, table_text
@@ -154,6 +155,7 @@ def render_html(comparison: Comparison, png: bytes, page: Path) -> str:
         c=comparison, columns=list(shown.columns), rows=rows,
         verdicts=comparison.verdicts, looks=looks, version=__version__,
         links=links, png=base64.b64encode(png).decode("ascii"), stem=Path(page).stem,
+        folder=folder_name(comparison.base_folder),
         heading=HEADINGS.get(comparison.kind, HEADINGS["compare"]))
 
 
@@ -249,7 +251,7 @@ td.l,th{text-align:left}.small{color:#555;font-size:12px}.wrap{overflow-x:auto;m
 .mark{font-size:15px}img{max-width:100%}.ci{color:#666;font-size:10px}</style></head><body>
 <h1>{{ heading }}</h1>
 <p>Study <b>{{ c.study.name }}</b> (configuration {{ c.study.config_hash() }}, folder
-{{ c.base_folder }}): {{ c.controllers | length }} controllers on the same episodes and
+{{ folder }}): {{ c.controllers | length }} controllers on the same episodes and
 populations. PopNavShift {{ version }}, made {{ c.made }}. Every card was made under the
 same rules: against {{ c.settings.get("baselines", []) | join(", ") }},
 {{ c.settings.get("n_boot", "–") }} bootstrap resamples, seed {{ c.settings.get("seed", "–") }},
