@@ -36,8 +36,8 @@ from ..analysis.calibrate import calibration_table
 from ..analysis.evidence import complete_design, test_comparisons
 from ..analysis.nulls import design_populations, family_verdicts, headline_designs
 from ..analysis.ranked import RANKED_METRICS
-from ..analysis.reversals import COMPARISONS
 from ..analysis.replicates import seed_sets
+from ..analysis.reversals import COMPARISONS
 from ..analysis.verdicts import ABOVE, ALPHA, BELOW, MIN_EFFECT, SMALL
 from ..populations.identity import PopulationSpec, spec_of
 from ..tables import NO_ROBOT
