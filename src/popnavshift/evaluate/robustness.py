@@ -111,7 +111,8 @@ def robustness_tables(runs: pd.DataFrame, peds: pd.DataFrame, controller: str,
         empty = pd.DataFrame(columns=COLUMNS)
         return Robustness(empty, pd.DataFrame(), empty, pd.DataFrame(), UNDECIDED_LABEL,
                           "no null design to decide against: " + "; ".join(missing.values())
-                          + ".",
+                          + ". A study with null parts decides it: the paper study (`make "
+                          "run`, then evaluate without --study).",
                           missing)
     cat = {k: pd.concat(v, ignore_index=True) for k, v in frames.items()}
     head = family_verdicts(cat["head"], cat["null"])
