@@ -8,9 +8,18 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from popnavshift.analysis import cell_key, cell_metrics, paired_delays, tail_count, worst_decile
+from popnavshift.analysis import (
+    cell_key,
+    cell_metrics,
+    controller_outcomes,
+    paired_delays,
+    tail_count,
+    worst_decile,
+)
 from popnavshift.episodes.specs import Cell
 from popnavshift.errors import InputError
+from popnavshift.tables import TIME_LIMIT
+from synth_study import no_effect, synthetic_study
 
 SIDEWALK = ("sidewalk", 1.8, 0.12, 0.6)
 NARROW = "sidewalk-w1.8-d0.12-s0.6"
@@ -47,29 +56,57 @@ def test_cell_key_matches_episode_cells_even_for_numpy_floats():
     assert key == Cell("sidewalk", 1.8, 0.12, 0.6).key
 
 
-def test_paired_delay_only_when_both_runs_arrived():
+def test_every_pedestrian_that_arrives_without_the_robot_is_paired_blocked_ones_censored():
     peds = pd.DataFrame([
         # baseline (no robot)
         ped(0, True, 10.0, 12.0, controller="none"),
         ped(1, True, 11.0, controller="none"),
         ped(2, False, np.nan, 3.0, controller="none"),
         ped(3, True, 9.0, 10.0, controller="none"),
+        ped(5, False, np.nan, 3.0, controller="none"),
         # the same slot under another population or backend must not be used
         ped(1, True, 5.0, controller="none", population="high_caution"),
         ped(1, True, 5.0, controller="none", backend="hl"),
         # robot run
         ped(0, True, 12.5, 13.0),
-        ped(1, False, np.nan, 4.0),  # robot run: not arrived
-        ped(2, True, 15.0),  # baseline: not arrived
+        ped(1, False, np.nan, 4.0),  # blocked: arrived without the robot, not with it
+        ped(2, True, 15.0),  # baseline: not arrived, so no added delay is defined
         ped(3, True, 8.5, 10.5),  # faster with the robot: negative delay kept
         ped(4, True, 20.0),  # no baseline row
+        ped(5, False, np.nan, 2.0),  # arrived in neither run
     ])
     out = paired_delays(peds)
-    assert out["slot"].tolist() == [0, 3]
-    assert out["delay"].tolist() == pytest.approx([2.5, -0.5])
-    assert out["added_distance"].tolist() == pytest.approx([1.0, 0.5])
+    assert out["slot"].tolist() == [0, 1, 3]
+    assert out["blocked"].tolist() == [False, True, False]
+    # the blocked pedestrian counts at the 45 s limit: 45 − 11, a lower bound
+    assert out["delay"].tolist() == pytest.approx([2.5, TIME_LIMIT - 11.0, -0.5])
+    assert out["added_distance"].tolist()[0::2] == pytest.approx([1.0, 0.5])
+    assert math.isnan(out["added_distance"].iloc[1])  # a partial path is not comparable
     assert set(out["controller"]) == {"reactive"}
     assert "part" not in out.columns
+
+
+def test_a_shorter_horizon_censors_every_time_beyond_it():
+    peds = pd.DataFrame([ped(0, True, 10.0, controller="none"), ped(1, True, 11.0,
+                                                                    controller="none"),
+                         ped(2, True, 12.5, controller="none"),
+                         ped(0, True, 12.5), ped(1, False, np.nan), ped(2, True, 13.0)])
+    out = paired_delays(peds, horizon=12.0)
+    assert out["slot"].tolist() == [0, 1]  # slot 2 arrived too late without the robot
+    assert out["blocked"].tolist() == [True, True]
+    assert out["delay"].tolist() == pytest.approx([2.0, 1.0])
+
+
+def test_the_records_are_the_same_pedestrians_under_every_controller():
+    """Which pedestrians a cell's delays average over depends on the baseline only."""
+    peds = pd.DataFrame([ped(s, s != 2, 10.0 + s, controller="none") for s in range(4)]
+                        + [ped(s, s != 1, 12.0 + s, controller="reactive") for s in range(4)]
+                        + [ped(s, True, 11.0 + s, controller="robot_orca") for s in range(4)])
+    out = paired_delays(peds)
+    slots = out.groupby("controller")["slot"].apply(list).to_dict()
+    assert slots == {"reactive": [0, 1, 3], "robot_orca": [0, 1, 3]}
+    assert out.groupby("controller")["blocked"].sum().to_dict() == {"reactive": 1,
+                                                                    "robot_orca": 0}
 
 
 def test_paired_delays_pair_each_controller_with_the_shared_baseline():
@@ -105,11 +142,12 @@ def test_worst_decile_by_hand():
     assert math.isnan(worst_decile(np.array([])))
 
 
-def _paired(controller, variant, delays):
+def _paired(controller, variant, delays, blocked=()):
     return pd.DataFrame({
         "episode": episode(variant=variant), "population": "mixed", "controller": controller,
         "backend": "orca", "mapping": "A", "slot": range(len(delays)), "persona_id": "p",
-        "delay": delays, "added_distance": np.asarray(delays) / 2,
+        "blocked": [i in blocked for i in range(len(delays))], "delay": delays,
+        "added_distance": [np.nan if i in blocked else d / 2 for i, d in enumerate(delays)],
     })
 
 
@@ -127,7 +165,7 @@ def test_cell_metrics_pool_variants():
     ])
     # reactive: delays 1..11 spread over the variants (4 + 4 + 3); none for early_yield
     paired = pd.concat([_paired("reactive", 1, [1.0, 2.0, 3.0, 4.0]),
-                        _paired("reactive", 2, [5.0, 6.0, 7.0, 11.0]),
+                        _paired("reactive", 2, [5.0, 6.0, 7.0, 11.0], blocked=(3,)),
                         _paired("reactive", 3, [8.0, 9.0, 10.0])], ignore_index=True)
     out = cell_metrics(runs, paired).set_index(["cell", "controller"])
     assert len(out) == 3  # the no-robot run is not a controller
@@ -136,15 +174,17 @@ def test_cell_metrics_pool_variants():
     assert r["robot_time"] == pytest.approx(29.0)
     assert r["success_share"] == pytest.approx(2 / 3)
     assert not r["completed"]
-    assert r["n_paired"] == 11
+    assert r["n_paired"] == 11 and r["n_blocked"] == 1
+    assert r["blocked_pct"] == pytest.approx(100 / 11)
     assert r["mean_delay"] == pytest.approx(6.0)
     assert r["worst_decile"] == pytest.approx(10.5)  # ⌈1.1⌉ = 2 → mean of 11 and 10
-    assert r["mean_added_distance"] == pytest.approx(3.0)
+    assert r["mean_added_distance"] == pytest.approx(55 / 20)  # the blocked record has none
     e = out.loc[(NARROW, "early_yield")]
     assert e["completed"]
     assert e["success_share"] == 1.0
-    assert e["n_paired"] == 0
+    assert e["n_paired"] == 0 and e["n_blocked"] == 0
     assert math.isnan(e["mean_delay"]) and math.isnan(e["worst_decile"])
+    assert math.isnan(e["blocked_pct"])
     w = out.loc[("bottleneck-w4.2-d0.2-s1.0", "reactive")]
     assert w["robot_time"] == 45.0 and not w["completed"]
     assert w["width"] == 4.2 and w["scene"] == "bottleneck"
@@ -165,3 +205,59 @@ def test_cell_metrics_reject_an_episode_in_two_cells():
     b = {**run("early_yield", "success", 20.0), "width": 2.4}
     with pytest.raises(InputError, match="episode"):
         cell_metrics(pd.DataFrame([a, b]), _paired("reactive", 1, [1.0]))
+
+
+# --- blocking is never cheaper than delaying ----------------------------------------------
+
+
+def _block_or_delay(k: int):
+    """A synthetic study where controller ``a`` blocks k pedestrians of every episode and
+    ``b`` lets the same ones arrive 0.01 s before the limit, every other pedestrian of
+    ``a`` and ``b`` walking as under ``c``, which blocks nobody."""
+    runs, peds = synthetic_study({"p": no_effect}, n_cells=2, variants=3, n_peds=12)
+    peds = peds.set_index(["episode", "population", "backend", "mapping", "slot"])
+    c = peds[peds["controller"] == "c"]
+    rows = []
+    for ctrl in ("a", "b"):
+        mine = c.assign(controller=ctrl)
+        chosen = mine.index.get_level_values("slot") < k
+        if ctrl == "a":
+            mine.loc[chosen, ["arrived", "travel_time"]] = [False, np.nan]
+        else:
+            mine.loc[chosen, "travel_time"] = TIME_LIMIT - 0.01
+        rows.append(mine)
+    peds = pd.concat([peds[~peds["controller"].isin(["a", "b"])], *rows]).reset_index()
+    return runs, peds
+
+
+def test_a_controller_that_blocks_reads_worse_than_one_that_delays_short_of_the_limit():
+    runs, peds = _block_or_delay(k=2)
+    paired = paired_delays(peds)
+    cells = cell_metrics(runs, paired).set_index(["cell", "controller"])
+    for cell in cells.index.get_level_values("cell").unique():
+        a, b = cells.loc[(cell, "a")], cells.loc[(cell, "b")]
+        assert a["n_paired"] == b["n_paired"] == 36 and a["n_blocked"] == 6
+        assert a["blocked_pct"] == pytest.approx(100 * 6 / 36) and b["blocked_pct"] == 0.0
+        for metric in ("mean_delay", "worst_decile", "cvar90"):
+            assert a[metric] > b[metric], (cell, metric)
+    # counting survivors only (the old rule), blocking would have read as the lighter burden
+    arrived = paired[~paired["blocked"]].groupby("controller")["delay"].mean()
+    assert arrived["a"] < arrived["b"]
+    table2 = controller_outcomes(runs, cells.reset_index())
+    assert table2.at["a", "mean_delay"] > table2.at["b", "mean_delay"]
+    assert table2.at["a", "blocked_pct"] == pytest.approx(100 * 6 / 36)
+    assert table2.at["c", "blocked_pct"] == 0.0
+
+
+def test_a_controller_that_blocks_nobody_keeps_its_delays():
+    runs, peds = _block_or_delay(k=3)
+    cells = cell_metrics(runs, paired_delays(peds)).set_index(["cell", "controller"])
+    base = peds[peds["controller"] == "none"].set_index(["episode", "slot"])["travel_time"]
+    mine = peds[peds["controller"] == "c"].set_index(["episode", "slot"])["travel_time"]
+    delays = (mine - base).reset_index()
+    delays["cell"] = delays["episode"].str.rsplit("-v", n=1).str[0]
+    for cell, d in delays.groupby("cell")["travel_time"]:
+        row = cells.loc[(cell, "c")]
+        assert row["n_blocked"] == 0 and row["blocked_pct"] == 0.0
+        assert row["mean_delay"] == pytest.approx(d.mean())
+        assert row["worst_decile"] == pytest.approx(worst_decile(d.to_numpy()))

@@ -42,7 +42,7 @@ from ..analysis import (
     rate_intervals,
     worst_decile,
 )
-from ..analysis.delay import UNIT
+from ..analysis.cells import UNIT
 from ..tables import RUN_KEY
 from .safety import failure_rates, paired_differences, safety_findings
 from .verdict import (

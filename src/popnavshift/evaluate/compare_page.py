@@ -69,17 +69,21 @@ def display_table(table: pd.DataFrame) -> pd.DataFrame:
 
 
 def compare_figure(comparison: Comparison):
-    """Four panels, one per compared metric: its mean per population, each controller in
-    its own style (the same as on every card). A matplotlib Figure."""
+    """One panel per compared metric, two per row: its mean per population, each controller
+    in its own style (the same as on every card). A matplotlib Figure."""
     import matplotlib  # lazy: slow to import
 
     matplotlib.use("Agg")
     matplotlib.rcParams["text.parse_math"] = False  # a label is data: "$" is no math
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(2, 2, figsize=(12, 8), constrained_layout=True)
-    for ax, metric in zip(axes.flat, COMPARE_METRICS, strict=True):
+    n_rows = -(-len(COMPARE_METRICS) // 2)
+    fig, axes = plt.subplots(n_rows, 2, figsize=(12, 4 * n_rows), constrained_layout=True,
+                             squeeze=False)
+    for ax, metric in zip(axes.flat, COMPARE_METRICS, strict=False):
         population_panel(ax, comparison.per_population, metric, comparison.controllers)
+    for ax in axes.flat[len(COMPARE_METRICS):]:
+        ax.set_axis_off()
     handles, labels = axes.flat[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside lower center", ncol=min(6, len(labels)),
                fontsize=9)  # outside the panels: it never hides a point

@@ -20,6 +20,7 @@ from ..analysis.surviving import findings_list
 from ..analysis.verdicts import ABOVE
 from ..populations.build import population_order
 from ..populations.identity import MATCHED_PAIR
+from ..tables import TIME_LIMIT
 from .blocks import Cell, Section, figure, fmt, para, pct, table
 from .figures import METRIC_LABELS, change_rows, controller_label, pop_label, tau_matrix
 
@@ -33,6 +34,7 @@ OUTCOME_ROWS = (  # Table II rows: column of controller_outcomes, label, number 
     ("min_clearance", "Minimum clearance (m)", "{:.2f}"),
     ("mean_delay", "Mean added delay (s)", "{:.2f}"),
     ("worst_decile", "Worst-decile delay (s)", "{:.2f}"),
+    ("blocked_pct", "Pedestrians blocked (%)", "{:.2f}"),
 )
 WORDS = {"success_pct": "success rate", "timeout_pct": "timeout rate", "mean_delay": "mean delay",
          "worst_decile": "worst-decile delay", "robot_time": "robot travel time",
@@ -206,8 +208,12 @@ def outcomes_section(a: Analysis) -> Section:
         OUTCOME_ROWS if col in t.columns]
     rows.append(["Robot runs"] + [x for c in ctrls for x in (int(t.at[c, "n_runs"]), "")])
     s.blocks.append(table(cols, rows, csv="controller_outcomes", groups=groups))
-    s.blocks.append(para("Delays are the mean over (cell, population) rows of each cell's "
-                         "statistic; robot time counts 45 s for failed runs."))
+    s.blocks.append(para("Delays and the blocked share are the mean over (cell, population) "
+                         "rows of each cell's statistic. Every pedestrian that arrived "
+                         "without the robot counts: one that did not arrive with it is "
+                         f"blocked, and its travel time counts as the {TIME_LIMIT:g} s limit "
+                         "(its delay is then a lower bound). Robot time counts "
+                         f"{TIME_LIMIT:g} s for failed runs."))
     return s
 
 

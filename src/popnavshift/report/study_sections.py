@@ -84,10 +84,14 @@ def checks_section(a: Analysis) -> Section:
             csv="no_robot_checks"))
     share = a.tables.get("paired_share")
     if share is not None:
-        s.blocks.append(table(["Controller", "Pedestrian records", "With a paired delay", "Share"],
+        s.blocks.append(table(["Controller", "Pedestrian records", "With a paired delay", "Share",
+                               "Blocked", "Blocked share"],
                               [[controller_label(r.controller), r.n_records, r.n_paired,
-                                pct(r.share)] for r in share.itertuples(index=False)],
-                              caption="Paired delay availability (the paper: nearly all)",
+                                pct(r.share), r.n_blocked, pct(r.blocked_share)]
+                               for r in share.itertuples(index=False)],
+                              caption="Paired delays: a pedestrian that arrived without the "
+                                      "robot has one; blocked = it did not arrive with the "
+                                      "robot (its delay counted at the time limit)",
                               csv="paired_share"))
     return s
 
