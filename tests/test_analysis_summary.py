@@ -162,7 +162,8 @@ def test_paired_share():
     peds = pd.DataFrame([_ped("A", "reactive", k, 10.0) for k in range(4)])
     paired = pd.DataFrame({"controller": ["reactive"] * 3, "blocked": [False, True, False]})
     row = paired_share(peds, paired).iloc[0]
-    assert row["share"] == 0.75
+    # 4 records: 3 arrived without the robot, 2 of those with it too (paired), 1 blocked
+    assert row["n_paired"] == 2 and row["share"] == 0.5
     assert row["n_blocked"] == 1 and row["blocked_share"] == pytest.approx(1 / 3)
 
 

@@ -228,8 +228,7 @@ POPULATION_COLUMNS: tuple[str, ...] = ("population_role", "null_replicate")
 
 #: [s] the episode limit: a run ends by then, and a pedestrian still walking has not
 #: arrived. The simulator's ``sim.constants.TIME_LIMIT`` (a test ties the two; the analysis
-#: may not import the simulator). The burden counts a pedestrian that arrived without the
-#: robot but not with it at this travel time (docs/analysis.md §2).
+#: may not import the simulator).
 TIME_LIMIT = 45.0
 
 _NO_ROBOT_NAN = "no robot (controller none), or the controller raised (controller_error)"
@@ -287,8 +286,8 @@ ROBOT_METRICS: tuple[Column, ...] = (
 PEDESTRIAN_METRICS: tuple[Column, ...] = (
     _col("arrived", "bool", f"reached its exit before the {TIME_LIMIT:g} s limit"),
     _col("travel_time", "float", "time from t = 0 to crossing the exit line", "s",
-         nullable=True, missing=f"never arrived; the burden counts it at the {TIME_LIMIT:g} s "
-         "limit if it arrived without the robot (docs/analysis.md §2)"),
+         nullable=True, missing="never arrived; if it arrived without the robot, the burden "
+         "counts it as blocked (docs/analysis.md §2)"),
     _col("walk_distance", "float", "path length up to the exit (or the end of the run)",
          "m"),
     _col("stop_time", "float", "time slower than 0.05 m/s before leaving", "s"),

@@ -7,10 +7,11 @@ A run is identified by (episode, population, controller, backend, mapping); the
 once), so it is never used as a key here. Select a sub-study by filtering on
 episodes, populations, backends or mappings instead.
 
-Every pedestrian that arrives without the robot counts in the burden: one that does
-not arrive with it (blocked) gets the time limit as its travel time, so its delay is a
-lower bound and blocking is never cheaper than any delay short of it
-(docs/analysis.md §2; the choice and its alternatives: docs/method.md §8).
+The delays follow SPEC §7: a pedestrian's added delay exists only when it arrived in
+both runs. One that arrived without the robot but not with it is *blocked*: it keeps a
+row of the paired table (``blocked``, delay NaN) and enters the burden as the cell's
+``blocked_pct``, a ranked metric beside the delays (docs/analysis.md §2; the choice and
+the censored alternative: docs/method.md §8).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
-from ..tables import NO_ROBOT, RUN_KEY, TIME_LIMIT
+from ..tables import NO_ROBOT, RUN_KEY
 from .cells import CELL_COLUMNS, CELL_KEY, episode_cells
 from .ranked import RANKED_METRICS, TAIL_SHARE, share_resampled, tail_count
 from .resample import build_design
@@ -28,7 +29,7 @@ from .resample import build_design
 PAIR_KEY: tuple[str, ...] = ("episode", "population", "backend", "mapping")
 
 
-def paired_delays(pedestrians: pd.DataFrame, *, horizon: float = TIME_LIMIT) -> pd.DataFrame:
+def paired_delays(pedestrians: pd.DataFrame) -> pd.DataFrame:
     """Added travel time and distance of each pedestrian of each robot run.
 
     Args:
@@ -36,19 +37,16 @@ def paired_delays(pedestrians: pd.DataFrame, *, horizon: float = TIME_LIMIT) -> 
         controller, backend, mapping, slot, persona_id, arrived, travel_time``
         [s] and ``walk_distance`` [m]; ``controller == "none"`` rows are the
         no-robot baselines.
-      horizon: a pedestrian counts as arrived when it arrived by this time [s]; one that
-        did not is counted at it. The runs' time limit by default; never more (a longer
-        time would not be a bound).
 
     Returns:
       One row per (robot run, slot) whose pedestrian arrived in its baseline (same
       episode, population, backend, mapping, slot): ``episode, population, controller,
       backend, mapping, slot, persona_id``; ``blocked`` (it did not arrive with the
-      robot); ``delay`` [s] = min(T(robot), horizon) − T(no robot), exact when it arrived
-      with the robot and a lower bound when blocked; ``added_distance`` [m] likewise from
-      ``walk_distance``, NaN when blocked (a partial path). A pedestrian that did not
-      arrive without the robot has no added delay and no row, under every controller
-      alike, so every controller of a cell is judged on the same pedestrians.
+      robot); ``delay`` [s] = T(robot) − T(no robot) and ``added_distance`` [m] likewise
+      from ``walk_distance``, both defined only when it arrived in both runs (SPEC §7)
+      and NaN when blocked. The rows with ``blocked`` False are the paired delays. A
+      pedestrian that did not arrive without the robot has no row, under every
+      controller alike.
 
     Raises :class:`InputError` on duplicate pedestrian rows or when a pair's
     persona ids differ (the slot assignment would be broken).
@@ -58,7 +56,7 @@ def paired_delays(pedestrians: pd.DataFrame, *, horizon: float = TIME_LIMIT) -> 
     peds = pedestrians[cols]
     if peds.duplicated([*key, "controller"]).any():
         raise InputError("pedestrians table: duplicate (run, slot) rows")
-    arrived = peds["arrived"].astype(bool) & (peds["travel_time"] <= horizon)
+    arrived = peds["arrived"].astype(bool)
     is_base = peds["controller"] == NO_ROBOT
     base = peds[is_base & arrived].drop(columns=["controller", "arrived"])
     robot = peds[~is_base].assign(blocked=~arrived[~is_base]).drop(columns="arrived")
@@ -73,7 +71,7 @@ def paired_delays(pedestrians: pd.DataFrame, *, horizon: float = TIME_LIMIT) -> 
             hint="robot and no-robot runs must share the slot assignment",
         )
     ok = ~both["blocked"]
-    both["delay"] = both["travel_time"].where(ok, horizon) - both["travel_time_base"]
+    both["delay"] = (both["travel_time"] - both["travel_time_base"]).where(ok)
     both["added_distance"] = (both["walk_distance"] - both["walk_distance_base"]).where(ok)
     out = ["episode", "population", "controller", "backend", "mapping", "slot", "persona_id",
            "blocked"]
@@ -125,12 +123,12 @@ def cell_metrics(runs: pd.DataFrame, paired: pd.DataFrame) -> pd.DataFrame:
       (:data:`popnavshift.analysis.ranked.RANKED_METRICS`, e.g. ``robot_time`` [s], the
       mean over variants of the run's robot time, 45 s for failed runs);
       ``success_share`` in [0, 1]; ``completed`` (every variant run succeeded);
-      ``n_paired`` (pedestrians that arrived without the robot) and ``n_blocked`` (of
-      those, not with it); the burden metrics over the pooled paired records
-      (``mean_delay``, ``worst_decile``, ``cvar90`` [s], blocked ones counted at the time
-      limit; ``blocked_pct`` [%]); ``mean_added_distance`` [m] over the records that
-      arrived with the robot. The burden columns are NaN and ``n_paired`` is 0 when the
-      cell has no paired record.
+      ``n_paired`` (paired delays: pedestrians that arrived in both runs) and
+      ``n_blocked`` (arrived without the robot, not with it); the delay metrics over the
+      pooled paired delays (``mean_delay``, ``worst_decile``, ``cvar90`` [s]; NaN when
+      ``n_paired`` is 0) and ``blocked_pct`` [%] = 100 · n_blocked / (n_paired +
+      n_blocked) (NaN when both are 0); ``mean_added_distance`` [m] over the paired
+      records.
 
     Every ranked metric and ``success_share`` is its bootstrap function
     (:mod:`popnavshift.analysis.resample`) with unit weights: the point is a resample.

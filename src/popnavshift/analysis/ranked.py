@@ -52,15 +52,16 @@ class CSR:
 class Design:
     """Rows (the cell-metric key), episodes (weight columns) and each metric's entries.
 
-    A paired record is a pedestrian of a robot run that arrived without the robot; its
-    delay is censored at the time limit when it did not arrive with it (``blocked``;
-    :func:`popnavshift.analysis.delay.paired_delays`)."""
+    A record is a pedestrian of a robot run that arrived without the robot; it has a
+    paired delay when it arrived with the robot too, and is ``blocked`` otherwise
+    (:func:`popnavshift.analysis.delay.paired_delays`). The delay entries hold the paired
+    delays only (SPEC §7); ``blocked`` counts every record."""
 
     rows: pd.DataFrame  # CELL_KEY columns, one row per cell metric, sorted
     episodes: pd.DataFrame  # episode, cell, column (0 … E−1)
     times: CSR  # robot time of each run: val = robot_time
-    delays: CSR  # per (row, episode): val = Σ delay, aux = count of records
-    blocked: CSR  # the entries of ``delays``: val = blocked records, aux = count of records
+    delays: CSR  # per (row, episode): val = Σ paired delay, aux = count of paired delays
+    blocked: CSR  # per (row, episode): val = blocked records, aux = all records
     records: CSR  # every paired delay, largest first within a row
     outcomes: dict[str, CSR]  # per run, 1.0 when the run ended in the outcome
 
@@ -175,8 +176,8 @@ def cvar90_rows(d: Design, w: np.ndarray) -> np.ndarray:
 
 
 def blocked_pct_rows(d: Design, w: np.ndarray) -> np.ndarray:
-    """Pedestrians blocked: 100 · Σ_e w_e k_e / Σ_e w_e n_e [%], k_e of the n_e paired
-    records of episode e not arrived with the robot (all n_e arrived without it); NaN
+    """Pedestrians blocked: 100 · Σ_e w_e k_e / Σ_e w_e n_e [%], k_e of the n_e records of
+    episode e (pedestrians that arrived without the robot) not arrived with it; NaN
     without a record."""
     return 100.0 * _ratio(w, d.blocked.ptr, d.blocked.col, d.blocked.val, d.blocked.aux, True)
 

@@ -8,10 +8,10 @@ mapping of the cell: a resample is a vector of episode multiplicities
 (``episode_weights``), and every comparison computed from one resample is paired
 (same episodes under every controller and population).
 
-``Design`` indexes a runs table and its paired delays once (per cell-metric row:
-its runs, its per-episode delay sums and blocked counts, and its delay records
-sorted from the largest); ``resampled_metrics`` then evaluates every cell metric
-under B weight vectors in numba, without rebuilding tables: each ranked metric by
+``Design`` indexes a runs table and its paired delays once (per cell-metric row: its
+runs, its per-episode delay sums, its per-episode blocked and record counts, and its
+delay records sorted from the largest); ``resampled_metrics`` then evaluates every cell
+metric under B weight vectors in numba, without rebuilding tables: each ranked metric by
 its declared ``compute`` function (:mod:`popnavshift.analysis.ranked`, where each
 says its formula), and ``<outcome>_share``: Σ_e w_e [outcome] / Σ_e w_e, e.g.
 ``success_share`` in [0, 1].
@@ -69,14 +69,20 @@ def build_design(runs: pd.DataFrame, paired: pd.DataFrame) -> Design:
     p = paired.merge(eps[["episode", "cell"]], on="episode")
     p_row, p_col = row_of(p), p["episode"].map(col_of).to_numpy()
     keep = p_row >= 0
-    p_row, p_col, d = p_row[keep], p_col[keep], p["delay"].to_numpy(float)[keep]
-    is_blocked = p["blocked"].to_numpy(float)[keep]
-    by = pd.DataFrame({"row": p_row, "col": p_col, "d": d, "k": is_blocked}).groupby(
-        ["row", "col"], sort=True)
-    sums = by.agg(d=("d", "sum"), n=("d", "size"), k=("k", "sum")).reset_index()
-    row, col, n = sums["row"].to_numpy(), sums["col"].to_numpy(), sums["n"].to_numpy(float)
-    delays = _csr(row, col, sums["d"].to_numpy(), len(rows), n)
-    blocked = _csr(row, col, sums["k"].to_numpy(), len(rows), n)
+    p_row, p_col = p_row[keep], p_col[keep]
+    is_blocked = p["blocked"].to_numpy(bool)[keep]
+    # blocked: every record (arrived without the robot); val = blocked, aux = records
+    per = pd.DataFrame({"row": p_row, "col": p_col, "k": is_blocked.astype(float)}).groupby(
+        ["row", "col"], sort=True)["k"].agg(["sum", "size"]).reset_index()
+    blocked = _csr(per["row"].to_numpy(), per["col"].to_numpy(), per["sum"].to_numpy(),
+                   len(rows), per["size"].to_numpy(float))
+    # delays: the paired delays only (arrived in both runs, SPEC §7)
+    ok = ~is_blocked
+    p_row, p_col, d = p_row[ok], p_col[ok], p["delay"].to_numpy(float)[keep][ok]
+    by = pd.DataFrame({"row": p_row, "col": p_col, "d": d}).groupby(["row", "col"], sort=True)
+    sums = by["d"].agg(["sum", "size"]).reset_index()
+    delays = _csr(sums["row"].to_numpy(), sums["col"].to_numpy(), sums["sum"].to_numpy(),
+                  len(rows), sums["size"].to_numpy(float))
     order = np.lexsort((-d, p_row))  # by row, then largest delay first
     records = _csr(p_row[order], p_col[order], d[order], len(rows))
     return Design(rows, eps, times, delays, blocked, records, outcomes)

@@ -90,8 +90,9 @@ def controller_outcomes(runs: pd.DataFrame, cells: pd.DataFrame) -> pd.DataFrame
     Outcome shares (``*_pct``, % of robot runs); ``robot_time`` [s], mean over
     runs with 45 s for failures; ``min_clearance`` [m], mean over runs of the
     robot's minimum pedestrian clearance (runs without one ignored);
-    ``mean_delay`` and ``worst_decile`` [s] (blocked pedestrians counted at the time
-    limit) and ``blocked_pct`` [%], the mean over (cell, population) rows of the cell
+    ``mean_delay`` and ``worst_decile`` [s] (paired delays: pedestrians that arrived in
+    both runs) and ``blocked_pct`` [%] (of those that arrived without the robot, the share
+    that did not arrive with it), the mean over (cell, population) rows of the cell
     statistics (rows without a paired record ignored), so each cell and population
     weighs the same, as in the reversal analysis; ``n_runs`` and ``n_cells`` (rows with a
     mean delay).
@@ -249,15 +250,16 @@ def paired_share(pedestrians: pd.DataFrame, paired: pd.DataFrame,
                  by: Sequence[str] = ("controller",)) -> pd.DataFrame:
     """Per group, the robot-run pedestrian records and how the burden counts them.
 
-    Columns: ``n_records``; ``n_paired``, those with a paired delay (arrived without the
-    robot), and ``share`` = n_paired / n_records in [0, 1]; ``n_blocked``, paired ones that
-    did not arrive with the robot (counted at the time limit), and ``blocked_share`` =
-    n_blocked / n_paired in [0, 1], pooled over the group's records.
+    Columns: ``n_records``; ``n_paired``, those with a paired delay (arrived in both runs),
+    and ``share`` = n_paired / n_records in [0, 1]; ``n_blocked``, those that arrived
+    without the robot but not with it, and ``blocked_share`` = n_blocked / (n_paired +
+    n_blocked) in [0, 1], pooled over the group's records. ``paired`` is
+    :func:`popnavshift.analysis.delay.paired_delays` (a ``blocked`` row has no delay).
     """
     robot = pedestrians[pedestrians["controller"] != NO_ROBOT]
     n = robot.groupby(list(by)).size()
-    g = paired.groupby(list(by))
-    k = g.size().reindex(n.index, fill_value=0)
-    b = g["blocked"].sum().reindex(n.index, fill_value=0).astype(np.int64)
+    b = paired.groupby(list(by))["blocked"].sum().reindex(n.index, fill_value=0)
+    k = paired[~paired["blocked"]].groupby(list(by)).size().reindex(n.index, fill_value=0)
+    b, k = b.astype(np.int64), k.astype(np.int64)
     return pd.DataFrame({"n_records": n, "n_paired": k, "share": k / n, "n_blocked": b,
-                         "blocked_share": b / k.where(k > 0)}).reset_index()
+                         "blocked_share": b / (k + b).where(k + b > 0)}).reset_index()

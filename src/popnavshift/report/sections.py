@@ -209,10 +209,10 @@ def outcomes_section(a: Analysis) -> Section:
     rows.append(["Robot runs"] + [x for c in ctrls for x in (int(t.at[c, "n_runs"]), "")])
     s.blocks.append(table(cols, rows, csv="controller_outcomes", groups=groups))
     s.blocks.append(para("Delays and the blocked share are the mean over (cell, population) "
-                         "rows of each cell's statistic. Every pedestrian that arrived "
-                         "without the robot counts: one that did not arrive with it is "
-                         f"blocked, and its travel time counts as the {TIME_LIMIT:g} s limit "
-                         "(its delay is then a lower bound). Robot time counts "
+                         "rows of each cell's statistic. A delay is paired: the pedestrian "
+                         "arrived with and without the robot. One that arrived without the "
+                         "robot but not with it is blocked: it has no delay and counts in "
+                         "the blocked share. Robot time counts "
                          f"{TIME_LIMIT:g} s for failed runs."))
     return s
 

@@ -89,9 +89,10 @@ def checks_section(a: Analysis) -> Section:
                               [[controller_label(r.controller), r.n_records, r.n_paired,
                                 pct(r.share), r.n_blocked, pct(r.blocked_share)]
                                for r in share.itertuples(index=False)],
-                              caption="Paired delays: a pedestrian that arrived without the "
-                                      "robot has one; blocked = it did not arrive with the "
-                                      "robot (its delay counted at the time limit)",
+                              caption="Paired delays: a pedestrian that arrived with and "
+                                      "without the robot has one; blocked = it arrived "
+                                      "without the robot but not with it (no delay; "
+                                      "share of those that arrived without the robot)",
                               csv="paired_share"))
     return s
 
