@@ -52,5 +52,5 @@ def render_audit(folder: Path) -> str:
                                                      "pedestrians": pd.DataFrame(),
                                                      "populations": None, "episodes": None})
     a = Analysis(selection="none", tables=tables,
-                 missing={"evidence": "no comparison was run", "delays": "none"})
+                 missing={"evidence_headline": "no comparison was run"}, delays_missing="none")
     return render_report(study, a, {}, folder / "report", {})

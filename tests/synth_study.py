@@ -17,8 +17,7 @@ import numpy as np
 import pandas as pd
 
 from popnavshift.analysis import cell_key
-from popnavshift.populations.identity import PopulationSpec
-from popnavshift.populations.nulls import null_populations
+from popnavshift.populations.identity import PopulationSpec, null_populations
 from popnavshift.tables import NO_ROBOT
 
 Effect = Callable[[int, str], float]  # (cell index, controller) → added delay [s]

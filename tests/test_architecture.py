@@ -14,7 +14,7 @@ LAYERS: tuple[frozenset[str], ...] = (
     frozenset({"errors", "version", "hashing", "redact", "registry", "progress", "io", "strict",
                "outputs"}),
     frozenset({"table_spec"}),
-    frozenset({"tables", "paper", "controller_ids"}),
+    frozenset({"tables", "paper", "controller_ids", "result_tables"}),
     frozenset({"personas", "episodes", "viz", "dictionary"}),
     frozenset({"responses", "profiles"}),
     frozenset({"populations"}),

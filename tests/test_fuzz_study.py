@@ -20,8 +20,9 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from forked_cli import run_cli
+from popnavshift.design.part import SCENES
 from popnavshift.design.plan import plan_study
-from popnavshift.design.study import SCENES, parse_study_yaml, study_from_dict
+from popnavshift.design.study import parse_study_yaml, study_from_dict
 from popnavshift.engine.runner import population_settings
 from popnavshift.engine.stages import stage_stamps
 from popnavshift.engine.validate import validate_study

@@ -171,7 +171,7 @@ def test_the_recipe_for_a_paper_finding(recipe_study):
     assert judged["estimate"] == pytest.approx(gap)
     assert bool(judged["holds"]) == (gap > 0)
     html = section(recipe_study, "summary")
-    assert "Creep has a lower mean delay than reactive" in html
+    assert "Creep has a lower mean delay than Reactive" in html
     assert f"reactive − creep mean delay [s] = {gap:.2f}" in html
 
 

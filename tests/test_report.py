@@ -126,7 +126,7 @@ def test_sections_appear_in_order_sanity_checks_before_any_score(quick):
     assert "the noise floor was not run" in html  # the quick study has no split halves
     from popnavshift.report.page import SECTIONS
 
-    assert ids == [i for i, _ in SECTIONS]  # the page is its table of sections, in order
+    assert ids == [s.id for s in SECTIONS]  # the page is its table of sections, in order
 
 
 # --- Numbers equal a recomputation from the Parquet tables --------------------------------------

@@ -219,6 +219,8 @@ EPISODES = declare(
 RUN_KEY: tuple[str, ...] = ("episode", "population", "controller", "backend", "mapping")
 NO_ROBOT = "none"
 """The ``controller`` value of a no-robot baseline run."""
+NO_ROBOT_LABEL = "no robot"
+"""How a page names :data:`NO_ROBOT`."""
 #: how a run's profile set was made, as columns (values:
 #: :meth:`popnavshift.populations.perturb.ProfileSet.columns`)
 PROFILE_SET_COLUMNS: tuple[str, ...] = (

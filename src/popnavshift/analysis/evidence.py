@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from .delay import cell_metrics, paired_delays
-from .nulls import CI_LEVEL, null_test
+from .nulls import CI_LEVEL, Design, null_test
 from .ranked import RANKED_NAMES
 from .resample import build_design, episode_weights, resampled_metrics
 from .significance import ALPHA, LEVEL, Orderings, crossover_tests, orderings
@@ -52,7 +52,7 @@ class Tested:
 
 
 def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
-                     designs: dict[str, tuple[list, list]], observed: Sequence[str], *,
+                     designs: dict[str, Design], observed: Sequence[str], *,
                      rng: np.random.Generator, n_boot: int = N_BOOT, level: float = LEVEL,
                      alpha: float = ALPHA, method: str = "holm",
                      metrics: Sequence[str] = RANKED_NAMES,
@@ -62,7 +62,8 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
     Args:
       runs, pedestrians: the runs analysed (observed and null populations, every seed
         set to pool: a cell pools all its episodes).
-      designs: label → (observed pairs, one list of pairs per null replicate).
+      designs: label → its :class:`.nulls.Design` (observed pairs, one list of pairs per
+        null replicate).
       observed: the observed populations (orderings, crossover tests and ranks).
       rng: draws the episode resamples (shared by every metric and population).
       rates_only: only the rates against their nulls (``headline``, ``null_rates``): the
@@ -79,7 +80,8 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
     for metric in metrics:
         boot = resampled_metrics(design, weights, (metric,))
         o = orderings(cells, design, boot, metric, level=level)
-        for label, (obs_pairs, null_pairs) in designs.items():
+        for label, d in designs.items():
+            obs_pairs, null_pairs = d.observed, d.nulls
             rows, reps = null_test(o, obs_pairs, null_pairs, ci_level=ci_level)
             for row in rows:
                 boot_excess[(label, metric, row["rule"])] = row.pop("boot_excess")

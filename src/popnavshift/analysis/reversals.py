@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from itertools import combinations
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -27,6 +28,29 @@ from .ranked import TOLERANCES, names
 #: The paper's three ranked metrics (Table I); each one's tie tolerance is declared with it.
 METRICS: tuple[str, ...] = names(paper=True)
 TIE_EPS = 1e-9  # [s] guard against binary rounding at exactly the tolerance
+
+
+class Comparison(NamedTuple):
+    """A comparison of populations whose reversals the study reports (the ``comparison``
+    column), with its names on a page: its ``title`` (the answer's box), ``short`` (figure
+    panels and sentences), ``phrase`` ("under the matched shift") and ``noun`` ("the
+    matched intervention")."""
+
+    title: str
+    short: str
+    phrase: str
+    noun: str
+
+
+#: Every comparison, in the order a page shows them: the matched pair, then every pair of
+#: the main part's populations.
+COMPARISONS: dict[str, Comparison] = {
+    "matched": Comparison("Matched time-pressure shift (same personas)",
+                          "Matched time-pressure shift", "under the matched shift",
+                          "the matched intervention"),
+    "all_pairs": Comparison("All population pairs of the main grid", "All population pairs",
+                            "across the population pairs", "the population pairs"),
+}
 
 
 def population_pairs(populations: Sequence[str]) -> list[tuple[str, str]]:

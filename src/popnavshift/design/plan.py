@@ -18,7 +18,8 @@ from ..episodes.specs import seed_set_id
 from ..errors import UnknownNameError
 from ..hashing import digest
 from ..tables import NO_ROBOT
-from .study import EpisodeSelection, Study
+from .part import EpisodeSelection
+from .study import Study
 
 
 @dataclass(frozen=True, order=True)

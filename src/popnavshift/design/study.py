@@ -13,202 +13,22 @@ from __future__ import annotations
 import re
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
-from pydantic import (
-    Field,
-    PrivateAttr,
-    ValidationError,
-    field_validator,
-    model_serializer,
-    model_validator,
-)
+from pydantic import PrivateAttr, ValidationError, field_validator, model_validator
 
-from ..controller_ids import controller_id
 from ..errors import ConfigError, UnknownNameError
 from ..hashing import digest
-from ..paper import PAPER_CONTROLLERS, PAPER_POPULATIONS
-from ..populations.build import POPULATIONS, SPLIT_HALVES, is_known, known
-from ..populations.identity import MATCHED_PAIR, SIZED_SOURCE, PopulationSpec, index_of
-from ..populations.nulls import null_populations
-from ..populations.perturb import ProfileSet
-from ..strict import Count, Names, Number, Seed, Strict, Unique
+from ..populations.identity import PopulationSpec, index_of
+from ..strict import Count, Seed, Strict, Unique
+from .part import PART_ROLES, Part, role_from_content
 from .specs import PersonaSource, RespondentSpec
 from .study_yaml import parse_study_yaml
 
-SCENES = ("sidewalk", "head_on", "crossing", "bottleneck", "obstruction")
 SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
 #: a name becomes a folder and a table value: long enough for any study, short enough
 #: for any file system (255 bytes a component)
 NAME_MAX = 100
-
-
-class EpisodeSelection(Strict):
-    """Which episodes of the 104-cell grid a part runs (``None`` = all values)."""
-
-    scenes: Annotated[tuple[str, ...] | None, Unique] = None
-    widths: Annotated[tuple[Number, ...] | None, Unique] = None
-    densities: Annotated[tuple[Number, ...] | None, Unique] = None
-    robot_speeds: Annotated[tuple[Number, ...] | None, Unique] = None
-    variants: Annotated[tuple[Annotated[int, Field(strict=True)], ...] | None, Unique] = None
-    #: explicit episode ids (wins over the filters)
-    ids: Annotated[tuple[str, ...] | None, Unique] = None
-
-    @field_validator("scenes")
-    @classmethod
-    def _known_scenes(cls, v):
-        for s in v or ():
-            if s not in SCENES:
-                raise ValueError(str(UnknownNameError("scene", s, SCENES)))
-        return v
-
-
-class NullDesign(Strict):
-    """A null design in place of a part's populations (:mod:`popnavshift.populations.nulls`):
-    ``swap`` permutations of the matched pair, or ``sized`` random subsets of mixed
-    matched in size to each of the part's populations (each kind's populations are
-    declared in :data:`popnavshift.populations.identity.NULL_KINDS`)."""
-
-    kind: Literal["swap", "sized"]
-    replicates: Annotated[int, Field(strict=True, ge=1, le=999)] = 19
-
-
-#: What the analysis does with a study part: ``main`` is the paper's design (Table I, the
-#: headline), ``mapping``, ``structure``, ``backend`` and ``respondent`` each give one
-#: robustness table, ``other`` nothing of its own (null replicates, split halves and extra
-#: seed sets are found by their populations and episodes wherever they run).
-PartRole = Literal["main", "mapping", "structure", "backend", "respondent", "other"]
-PART_ROLES: tuple[str, ...] = PartRole.__args__  # type: ignore[attr-defined]
-
-
-def role_from_content(part: Part) -> str:
-    """The role of a part that declares none and is not named after one: a null design
-    or a single profile set and backend is ``other``; two backends, ``backend``; a second
-    respondent's set, ``respondent``; a perturbed set, ``structure``; two mappings,
-    ``mapping``."""
-    if part.null_design is not None:
-        return "other"
-    sets = [ProfileSet.parse(m) for m in part.mappings]
-    if len(part.backends) > 1:
-        return "backend"
-    if any(s.perturbation == "second_respondent" for s in sets):
-        return "respondent"
-    if any(s.perturbation != "none" for s in sets):
-        return "structure"
-    return "mapping" if len(sets) > 1 else "other"
-
-
-class Part(Strict):
-    populations: Names = PAPER_POPULATIONS
-    episodes: EpisodeSelection = EpisodeSelection()
-    #: controller ids: a registered name, an entry point or ``package.module:Class``;
-    #: in YAML also ``{name: HRVO, params: {...}}``, stored as ``HRVO{"...":...}``
-    controllers: Names = PAPER_CONTROLLERS
-    backends: Names = ("orca",)
-    #: profile set(s): a mapping A–D, or a robustness label such as A~shuffle
-    mapping: str | Names = "A"
-    #: also run every episode × population without a robot
-    baseline: Annotated[bool, Field(strict=True)] = True
-    #: extra study seeds: the part's episodes are repeated, drawn with each seed
-    #: (ids ``<episode>@s<seed>``), so the report can show the spread across seed sets
-    seeds: Annotated[tuple[Seed, ...], Unique] = ()
-    #: run a null design instead of ``populations`` (which it stands in for): the
-    #: populations run are :attr:`planned_populations`
-    null_design: NullDesign | None = None
-    #: what the analysis does with it (:data:`PartRole`); default: its name when that is a
-    #: role, else its content (:func:`role_from_content`) — :meth:`Study.role`
-    role: PartRole | None = None
-
-    @model_serializer(mode="wrap")
-    def _without_unset_role(self, handler: Any) -> dict[str, Any]:
-        """An undeclared role stays out of the stored configuration, so a study's hash
-        (and every stamp after it) is the same as before parts had roles."""
-        data = handler(self)
-        if self.role is None:
-            data.pop("role", None)
-        return data
-
-    @property
-    def mappings(self) -> tuple[str, ...]:
-        return (self.mapping,) if isinstance(self.mapping, str) else tuple(self.mapping)
-
-    @property
-    def planned_specs(self) -> tuple[PopulationSpec, ...]:
-        """The populations this part runs, as identities: its own (conditions or split
-        halves, :data:`popnavshift.populations.build.KNOWN`), or its null design's."""
-        if self.null_design is None:
-            return tuple(known(p) for p in self.populations)
-        return null_populations(self.null_design.kind, self.null_design.replicates,
-                                self.populations)
-
-    @property
-    def planned_populations(self) -> tuple[str, ...]:
-        """The names of :attr:`planned_specs`."""
-        return tuple(spec.name for spec in self.planned_specs)
-
-    @field_validator("controllers", mode="before")
-    @classmethod
-    def _controller_ids(cls, v):
-        """``{name, params}`` entries → controller ids
-        (:func:`popnavshift.sim.controllers.registry.controller_id`), so parameters
-        enter the run key and two parameterisations never share a run."""
-        if not isinstance(v, list | tuple):
-            return v
-        return tuple(_controller_entry(c) for c in v)
-
-    @field_validator("populations")
-    @classmethod
-    def _known_populations(cls, v):
-        for p in v:
-            if not is_known(p):
-                # a ValueError: pydantic adds where it was (parts.main.populations.0)
-                raise ValueError(str(UnknownNameError("population", p,
-                                                      POPULATIONS + SPLIT_HALVES))
-                                 + " (null replicates are not listed: a part declares "
-                                 "them as null_design: {kind, replicates})")
-        return v
-
-    @model_validator(mode="after")
-    def _runs_something(self) -> Part:
-        """A sized null of ``mixed`` alone has no population to stand in for: the part
-        would plan no run at all."""
-        if self.null_design is not None and not self.planned_populations:
-            raise ValueError(f"a sized null stands in for populations other than "
-                             f"{SIZED_SOURCE!r} (its own size-matched subset), got "
-                             f"{list(self.populations)}")
-        return self
-
-    @model_validator(mode="before")
-    @classmethod
-    def _swap_stands_for_matched(cls, data: Any) -> Any:
-        """A swap null stands in for the matched pair: that is its populations' default,
-        and any other populations are an error."""
-        if not (isinstance(data, dict) and isinstance(data.get("null_design"), dict)
-                and data["null_design"].get("kind") == "swap"):
-            return data
-        pops = data.get("populations", MATCHED_PAIR)
-        if not isinstance(pops, list | tuple) or sorted(map(str, pops)) != sorted(MATCHED_PAIR):
-            raise ValueError(f"a swap null stands in for the matched pair: populations "
-                             f"{list(MATCHED_PAIR)} (the default), got {pops!r}")
-        return {**data, "populations": tuple(MATCHED_PAIR)}
-
-
-def _controller_entry(entry: Any) -> Any:
-    if not isinstance(entry, dict):
-        return entry
-    params = entry.get("params", {})
-    if (
-        set(entry) - {"name", "params"}
-        or not isinstance(entry.get("name"), str)
-        or not (isinstance(params, dict))
-    ):
-        raise ValueError(
-            f"a controller is NAME or {{name: NAME, params: {{KEY: VALUE}}}}, got {entry!r}"
-        )
-    try:
-        return controller_id(entry["name"], params)
-    except ConfigError as err:
-        raise ValueError(str(err)) from None
 
 
 class Study(Strict):

@@ -25,8 +25,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from ..io import atomic_path
-from ..populations.identity import PopulationSpec
-from ..populations.nulls import with_population_columns
+from ..populations.identity import PopulationSpec, with_population_columns
 from ..populations.perturb import with_profile_set_columns
 from ..tables import PEDESTRIANS, RUN_KEY, RUNS, check_table
 

@@ -19,9 +19,10 @@ import math
 from collections.abc import Iterable, Sequence
 from typing import Any
 
+from ..design.part import EpisodeSelection
 from ..design.plan import select_episodes
 from ..design.specs import RespondentSpec
-from ..design.study import EpisodeSelection, Study
+from ..design.study import Study
 from ..errors import ConfigError, UnknownNameError
 from ..populations.perturb import STRUCTURE, ProfileSet
 from ..profiles.mappings import MAPPINGS

@@ -34,7 +34,7 @@ import pandas as pd
 
 from ..analysis.calibrate import calibration_table
 from ..analysis.evidence import complete_design, test_comparisons
-from ..analysis.nulls import design_null, design_populations, family_verdicts, headline_designs
+from ..analysis.nulls import design_populations, family_verdicts, headline_designs
 from ..analysis.replicates import seed_sets
 from ..analysis.verdicts import ABOVE, ALPHA, BELOW, MIN_EFFECT, SMALL
 from ..populations.identity import PopulationSpec, spec_of
@@ -78,11 +78,11 @@ def robustness_tables(runs: pd.DataFrame, peds: pd.DataFrame, controller: str,
     conditions = {s.name for s in present if s.role == "observed"}
     designs = headline_designs(present, [p for p in observed if p in conditions])
     heads, nulls, missing = [], [], {}
-    for i, (label, (obs_pairs, null_pairs)) in enumerate(designs.items()):
-        if not null_pairs:
+    for i, (label, design) in enumerate(designs.items()):
+        if not design.nulls:
             missing[label] = f"the study ran no null of the {label} comparison"
             continue
-        pops = design_populations(obs_pairs, null_pairs)
+        pops = design_populations(design)
         for j, base in enumerate(baselines):
             keep = [controller, base, NO_ROBOT]
             r, p = complete_design(runs[runs["controller"].isin(keep)],
@@ -91,13 +91,13 @@ def robustness_tables(runs: pd.DataFrame, peds: pd.DataFrame, controller: str,
                 missing[comparison_key(label, base)] = "no episode holds both controllers"
                 continue
             key = comparison_key(label, base)
-            obs_pops = list(dict.fromkeys(x for pair in obs_pairs for x in pair))
-            tested = test_comparisons(r, p, {key: (obs_pairs, null_pairs)}, obs_pops,
+            obs_pops = list(dict.fromkeys(x for pair in design.observed for x in pair))
+            tested = test_comparisons(r, p, {key: design}, obs_pops,
                                       rng=np.random.default_rng([rng_seed, i, j]),
                                       n_boot=n_boot, rates_only=True)
             heads.append(tested.headline.assign(
                 design=label, baseline=base, seed_sets=int(seed_sets(r).nunique()),
-                null=design_null(label, obs_pairs, null_pairs, specs)))
+                null=design.null))
             nulls.append(tested.null_rates.assign(design=label, baseline=base))
     if not heads:
         return Robustness(pd.DataFrame(columns=COLUMNS), pd.DataFrame(), pd.DataFrame(),

@@ -17,8 +17,9 @@ from __future__ import annotations
 
 import pandas as pd
 
+from ..design.part import Part
 from ..design.plan import Run, plan_study
-from ..design.study import Part, Study
+from ..design.study import Study
 from ..episodes.specs import all_episodes
 from ..errors import InputError
 from ..populations.identity import spec_of

@@ -30,6 +30,7 @@ from ..design.plan import plan_study
 from ..errors import ConfigError, InputError, UnknownNameError
 from ..io import read_csv, read_json_object
 from ..outputs import read_output_manifest, verify
+from ..result_tables import RESULT_TABLES, TABLES_DIR, csv_path
 from .folder import open_study
 
 TABLES = ("runs", "pedestrians")
@@ -158,17 +159,20 @@ def report_intact(folder: str | Path) -> str:
 
 def results(study: str | Path) -> dict[str, pd.DataFrame]:
     """Every table of the study's report as a DataFrame, by name (``evidence_headline``,
-    ``evidence_power``, ``evidence_calibration``, ``reversals``, …: the CSVs of
-    ``STUDY/report/tables``). Raises :class:`InputError` when the study has no report,
-    or one that is not as its build wrote it (:func:`report_intact`)."""
-    folder = _folder(study) / REPORT_DIR / "tables"
+    ``evidence_power``, ``evidence_calibration``, ``reversals``, …), in the order of the
+    report's sections: each table of :data:`popnavshift.result_tables.RESULT_TABLES` the
+    report wrote (``docs/data.md`` says what each holds). Raises :class:`InputError` when
+    the study has no report, or one that is not as its build wrote it
+    (:func:`report_intact`)."""
+    report = _folder(study) / REPORT_DIR
     hint = f"write the report: popnavshift report {study}"
-    if not folder.is_dir():
-        raise InputError(f"{folder}: not found", hint=hint)
+    if not (report / TABLES_DIR).is_dir():
+        raise InputError(f"{report / TABLES_DIR}: not found", hint=hint)
     why = report_intact(study)
     if why:
         raise InputError(f"{Path(study) / REPORT_DIR} cannot be read: {why}", hint=hint)
-    return {p.stem: read_csv(p) for p in sorted(folder.glob("*.csv"))}
+    paths = {t.name: report / csv_path(t.name) for t in RESULT_TABLES}
+    return {name: read_csv(path) for name, path in paths.items() if path.is_file()}
 
 
 def card_intact(card: Path) -> tuple[dict[str, Any], str]:

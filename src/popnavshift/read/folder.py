@@ -21,8 +21,9 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from ..design.part import Part
 from ..design.plan import select_episodes
-from ..design.study import Part, Study, study_from_dict
+from ..design.study import Study, study_from_dict
 from ..episodes.specs import seed_set_id
 from ..errors import InputError
 from ..populations.build import HALVES, population_order
@@ -200,7 +201,7 @@ def split_halves(populations) -> list[tuple[str, str, str]]:
     """(population, half a, half b) for every pair of split halves (:data:`HALVES`) among
     ``populations``."""
     have = set(map(str, populations))
-    pairs = {(h.base, h.name, PopulationSpec.half(h.base, "b").name)
+    pairs = {(str(h.base), h.name, PopulationSpec.half(str(h.base), "b").name)
              for h in HALVES if h.arm == "a"}
     return sorted(p for p in pairs if {p[1], p[2]} <= have)
 

@@ -39,9 +39,9 @@ from ..outputs import (
 from ..read.access import REPORT_DIR, STAMP
 from ..read.folder import StudyFolder, main_grid, open_study
 from ..read.respondent_tables import read_respondent_tables
+from ..result_tables import check_declared, csv_path
 from ..version import __version__
 from .answer_figures import write_answer_figures
-from .blocks import csv_path
 from .figures import profile_figures, write_figures
 from .page import render_report
 from .replays import write_replays
@@ -133,9 +133,8 @@ def _build(study: StudyFolder, out: Path, settings: dict, step: Callable[[str], 
     step("figures")
     figures = write_figures(analysis, out / "figures")
     figures.update(write_answer_figures(evidence, out / "figures"))
-    fig3, why = profile_figures(study.folder / "figures", study.populations, out / "figures")
-    if why:
-        analysis.missing["profiles"] = why
+    fig3, analysis.profiles_missing = profile_figures(study.folder / "figures",
+                                                      study.populations, out / "figures")
     if (study.folder / "responses.parquet").exists():
         step("the respondent audit")
         analysis.tables.update(audit_tables(*read_respondent_tables(study.folder),
@@ -143,13 +142,14 @@ def _build(study: StudyFolder, out: Path, settings: dict, step: Callable[[str], 
     step("robustness parts")
     robust, robust_missing = robustness_tables(study, rng_seed=rng_seed, n_boot=n_boot)
     analysis.tables.update(robust)
-    analysis.missing.update({f"robust_{k}": v for k, v in robust_missing.items()})
+    analysis.missing.update(robust_missing)
     step("replays")
     reps = write_replays(study, analysis, runs, out / "replays", settings["replays"])
     if reps is not None and not reps.empty:
         analysis.tables["replays"] = reps
     elif settings["replays"] <= 0:
         analysis.missing["replays"] = "replays were not asked for (replays=0)"
+    check_declared(analysis.missing, "why tables are missing, for tables")
     write_tables(analysis.tables, out)
     step("the page")
     write_text(render_report(study, analysis, {**figures, **fig3}, out, settings),
@@ -157,6 +157,9 @@ def _build(study: StudyFolder, out: Path, settings: dict, step: Callable[[str], 
 
 
 def write_tables(tables: dict[str, pd.DataFrame], folder: Path) -> list[Path]:
-    """Each table as ``folder/tables/<name>.csv`` (:func:`.blocks.csv_path`; full
-    precision, no index, text cells safe in a spreadsheet: :func:`popnavshift.io.csv_text`)."""
+    """Each table as ``folder/tables/<name>.csv`` (:func:`popnavshift.result_tables.csv_path`;
+    full precision, no index, text cells safe in a spreadsheet: :func:`popnavshift.io.csv_text`).
+    A ValueError names any table :data:`popnavshift.result_tables.RESULT_TABLES` does not
+    declare."""
+    check_declared(tables, "report tables")
     return [write_csv(df, folder / csv_path(name)) for name, df in tables.items()]

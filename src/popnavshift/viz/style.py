@@ -1,5 +1,5 @@
 """One colour and one marker per controller, the same on every card, compare page and
-report figure.
+report figure; and its name on a page (:func:`controller_label`).
 
 The paper's controllers (and the report's ``pooled`` line) have fixed styles; any other
 name gets a colour and a marker from a stable hash of the name (sha256, the same in every
@@ -13,6 +13,11 @@ from __future__ import annotations
 from typing import NamedTuple
 
 from ..hashing import digest
+from ..paper import CONTROLLERS
+from ..tables import NO_ROBOT, NO_ROBOT_LABEL
+
+#: the label of each of the paper's controllers (declared with them) and of the no-robot runs
+LABELS: dict[str, str] = {**{c.name: c.label for c in CONTROLLERS}, NO_ROBOT: NO_ROBOT_LABEL}
 
 
 class Style(NamedTuple):
@@ -42,3 +47,9 @@ def controller_style(name: str) -> Style:
     h = int(digest(["controller-style", name])[:12], 16)
     return Style(PALETTE[h % len(PALETTE)], MARKERS[(h // len(PALETTE)) % len(MARKERS)])
 
+
+
+def controller_label(name: str) -> str:
+    """How a page names controller ``name``: the paper's name for one of its controllers
+    (:data:`popnavshift.paper.CONTROLLERS`), ``no robot`` for the baselines, else its id."""
+    return LABELS.get(name, name)
