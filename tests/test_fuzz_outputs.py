@@ -104,7 +104,7 @@ def test_a_damaged_card_is_never_reused_nor_read_as_it_is(carded, carded_copy, h
     except PopNavShiftError as err:
         assert not same and "\n" not in str(err) and "reactive" in str(err)
     else:
-        assert same and cards["reactive"]["verdict"]["label"]
+        assert same and cards["reactive"]["verdict"]["robustness"]["label"]
         assert isinstance(cards["reactive"]["outcomes"], pd.DataFrame)
 
 

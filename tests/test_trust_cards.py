@@ -193,13 +193,16 @@ def test_hostile_controller_names_in_the_comparisons_files_and_the_card(tmp_path
     from popnavshift.evaluate.card_page import write_card
     from popnavshift.evaluate.compare import Comparison, compare_table
     from popnavshift.evaluate.compare_page import write_comparison
+    from popnavshift.evaluate.robustness import robustness_tables
     from popnavshift.outputs import FileSet
     from report_study import STUDY
     from synth_study import no_effect, synthetic_study
 
     runs, peds = synthetic_study({"p1": no_effect, "p2": no_effect}, n_cells=3, variants=2,
                                  controllers=HOSTILE)
-    verdicts = {c: {"label": "inconclusive", "safety": [f"{c} collides"]} for c in HOSTILE}
+    verdicts = {c: {"robustness": {"label": "undecided", "text": f"{c} text", "row": {}},
+                    "safety": {"label": "unsafe", "text": f"{c} collides",
+                               "findings": [f"{c} collides"]}} for c in HOSTILE}
     table, per_pop = compare_table(runs, peds, HOSTILE, verdicts)
     cards = {c: tmp_path / "evaluate" / slug(c) / "card.html" for c in HOSTILE}
     paths = write_comparison(Comparison(HOSTILE, table, per_pop, cards, verdicts,
@@ -211,14 +214,18 @@ def test_hostile_controller_names_in_the_comparisons_files_and_the_card(tmp_path
     assert "&lt;b&gt;bold&lt;/b&gt;" in paths["html"].read_text()
     assert "\\<b\\>bold\\</b\\>\\|x" in paths["md"].read_text()
     assert "a\\$x\\textasciicircum{}\\$b" in paths["tex"].read_text()
-    card = card_tables(runs, peds, HOSTILE[1], HOSTILE[::2], rng=np.random.default_rng(0),
+    rob = robustness_tables(runs, peds, HOSTILE[1], HOSTILE[::2], {}, ["p1", "p2"], n_boot=20)
+    card = card_tables(runs, peds, HOSTILE[1], HOSTILE[::2], rob, rng=np.random.default_rng(0),
                        n_boot=20)
     with FileSet(tmp_path / "card", "card.json") as files:  # the figure draws "$x^$" as text
         html, png = write_card(card, {"n_boot": 20, "seed": 0, "study": "s", "part": "main",
                                       "check": "-", "reused": 0, "executed": 0, "n_runs": 1,
                                       "n_errors": 0, "n_cells": 3, "n_populations": 2,
                                       "backends": "orca", "mappings": "A", "replay_note": "",
-                                      "base_folder": "-", "seed_sets": 1}, files, None)
+                                      "base_folder": "-", "seed_sets": 1, "n_used": 1,
+                                      "safety_threshold": 0.01, "parts": "main", "n_every": 1,
+                                      "version": "0", "config_hash": "h", "made": "today"},
+                                     files, None)
         files.commit({})
     assert png.stat().st_size > 10_000 and "a$x^$b" in html.read_text()
 
@@ -226,11 +233,11 @@ def test_hostile_controller_names_in_the_comparisons_files_and_the_card(tmp_path
 def test_card_settings_from_python_are_checked_before_any_work(carded):
     study = load_study(str(carded.parent / "tiny.yaml"))
     from popnavshift.errors import ConfigError
-    from popnavshift.evaluate import compare as compare_api
+    from popnavshift.evaluate.compare import compare as compare_api
 
     for bad in ({"n_boot": 0}, {"n_boot": 1.5}, {"seed": -1}, {"safety_threshold": float("nan")},
                 {"safety_threshold": 2}):
         with pytest.raises(ConfigError):
             compare_api(["reactive"], study, carded, **bad)
-    assert card_identity("c", ["b"], "h", (pd.DataFrame({"a": [1]}),) * 2, n_boot=1, seed=0,
-                         safety_threshold=None)["runs"]
+    assert card_identity("reactive", ["early_yield"], "h", "digest", n_boot=1, seed=0,
+                         safety_threshold=None)["runs"] == "digest"

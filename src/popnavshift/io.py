@@ -130,10 +130,13 @@ def write_csv(df: pd.DataFrame, path: str | os.PathLike[str]) -> Path:
 
 def read_csv(path: str | os.PathLike[str]) -> pd.DataFrame:
     """A CSV this package wrote (:func:`csv_text`), text cells as written; InputError
-    naming the file when it is missing or not a readable CSV."""
+    naming the file when it is missing or not a readable CSV. A file holding one line
+    break is a table without columns (what :func:`csv_text` writes for one): empty."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: not found")
+    if path.stat().st_size == 1 and path.read_bytes() == b"\n":
+        return pd.DataFrame()
     try:
         df = pd.read_csv(path)
     except (ValueError, UnicodeDecodeError) as exc:  # pandas' parser errors are ValueErrors

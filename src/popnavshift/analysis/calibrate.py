@@ -58,6 +58,7 @@ from .verdicts import (
     MIN_EFFECT,
     MIN_NULLS_T,
     SMALL,
+    binomial_floor,
     clopper_pearson,
     min_nulls_permutation,
     permutation_test,
@@ -73,7 +74,7 @@ class Test:
     its false-positive rate)."""
 
     name: str
-    decide: Callable[[float, np.ndarray], dict]
+    decide: Callable[..., dict]  # (rate, null rates, *, floor) → dict with ``verdict``
     min_nulls: int
 
 
@@ -136,12 +137,21 @@ def placebos(null_rates: pd.DataFrame) -> pd.DataFrame:
             for j in range(len(rates)):
                 if not np.isfinite(rates[j]):
                     continue
-                d = check.test.decide(rates[j] + check.shift, np.delete(rates, j))
+                d = check.test.decide(rates[j] + check.shift, np.delete(rates, j),
+                                      floor=_floor_without(g, j))
                 rows.append({"comparison": comp, "metric": metric, "test": check.test.name,
                              "rule": rule, "claim": check.claim,
                              "replicate": int(g["replicate"].iloc[j]),
                              "claim_made": bool(check.made(d))})
     return pd.DataFrame(rows)
+
+
+def _floor_without(g: pd.DataFrame, j: int) -> float:
+    """The binomial floor (:func:`.verdicts.binomial_floor`) of replicates ``g`` but row j."""
+    if "comparable" not in g:
+        return 0.0
+    return binomial_floor(np.delete(g["reversals"].to_numpy(float), j),
+                          np.delete(g["comparable"].to_numpy(float), j))
 
 
 def family_placebos(null_rates: pd.DataFrame, family: int, *, alpha: float = ALPHA
@@ -153,22 +163,26 @@ def family_placebos(null_rates: pd.DataFrame, family: int, *, alpha: float = ALP
     truth is no effect), and, on the placebo shifted up by 5 pp, whether any was called
     *no excess ≥ 5 pp* (false: the truth is +5 pp)."""
     raw = null_rates[null_rates["rule"] == "raw"]
-    groups = {k: g.set_index("replicate")["rate"] for k, g in
+    tables = {k: g.set_index("replicate") for k, g in
               raw.groupby(["comparison", "metric"], sort=False)}
+    groups = {k: t["rate"] for k, t in tables.items()}
     if not groups or family < 1:
         return pd.DataFrame()
     common = sorted(set.intersection(*(set(g.index) for g in groups.values())))
     rows = []
     for j in common:
         effect = small = False
-        for g in groups.values():
+        for key, g in groups.items():
             rest = g.drop(index=j).to_numpy(float)
             if len(rest) < MIN_NULLS_T or not np.isfinite(g[j]):
                 continue
-            effect |= prediction_test(g[j], rest, alpha=alpha / family)["verdict"] in (ABOVE,
-                                                                                       BELOW)
-            small |= prediction_test(g[j] + MIN_EFFECT, rest,
-                                     alpha=alpha / family)["verdict"] == SMALL
+            others = tables[key].drop(index=j)
+            floor = (binomial_floor(others["reversals"], others["comparable"])
+                     if "comparable" in others else 0.0)
+            effect |= prediction_test(g[j], rest, alpha=alpha / family,
+                                      floor=floor)["verdict"] in (ABOVE, BELOW)
+            small |= prediction_test(g[j] + MIN_EFFECT, rest, alpha=alpha / family,
+                                     floor=floor)["verdict"] == SMALL
         rows += [{"comparison": "table", "test": "headline table", "rule": "raw",
                   "claim": FAMILY_EFFECT, "replicate": j, "claim_made": effect},
                  {"comparison": "table", "test": "headline table", "rule": "raw",

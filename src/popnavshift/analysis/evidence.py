@@ -49,6 +49,10 @@ class Tested:
     level: float
     #: (comparison, metric, rule) → the excess over the null in every resample (B,)
     boot_excess: dict[tuple[str, str, str], np.ndarray] = field(default_factory=dict)
+    #: with a ``controller``: ``headline`` and ``null_rates`` of each of its pairs alone
+    #: (column ``baseline``: the other controller of the pair)
+    pair_headline: pd.DataFrame = field(default_factory=pd.DataFrame)
+    pair_null_rates: pd.DataFrame = field(default_factory=pd.DataFrame)
 
 
 def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
@@ -56,7 +60,8 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
                      rng: np.random.Generator, n_boot: int = N_BOOT, level: float = LEVEL,
                      alpha: float = ALPHA, method: str = "holm",
                      metrics: Sequence[str] = RANKED_NAMES,
-                     ci_level: float = CI_LEVEL, rates_only: bool = False) -> Tested:
+                     ci_level: float = CI_LEVEL, rates_only: bool = False,
+                     controller: str | None = None) -> Tested:
     """Every comparison design of ``designs`` tested on ``runs`` (see the module doc).
 
     Args:
@@ -69,6 +74,9 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
       rates_only: only the rates against their nulls (``headline``, ``null_rates``): the
         crossover tests, orderings and ranks are left empty (the replicate curve needs
         no more).
+      controller: count only the orderings of this controller against the others (a
+        card: never the others' among themselves), pooled and, in ``pair_headline`` and
+        ``pair_null_rates``, pair by pair.
     """
     paired = paired_delays(pedestrians)
     cells = cell_metrics(runs, paired)
@@ -76,10 +84,13 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
     weights = episode_weights(design, n_boot, rng)
     boot_excess: dict[tuple[str, str, str], np.ndarray] = {}
     frames: dict[str, list[pd.DataFrame]] = {k: [] for k in ("head", "null", "cross", "ord",
-                                                           "rank", "placebo")}
+                                                           "rank", "placebo", "pair_head",
+                                                           "pair_null")}
     for metric in metrics:
         boot = resampled_metrics(design, weights, (metric,))
         o = orderings(cells, design, boot, metric, level=level)
+        if controller is not None:
+            o = o.involving(controller)
         for label, d in designs.items():
             obs_pairs, null_pairs = d.observed, d.nulls
             rows, reps = null_test(o, obs_pairs, null_pairs, ci_level=ci_level)
@@ -87,6 +98,13 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
                 boot_excess[(label, metric, row["rule"])] = row.pop("boot_excess")
             frames["head"].append(pd.DataFrame(rows).assign(comparison=label))
             frames["null"].append(reps.assign(comparison=label))
+            for other in _others(o, controller):
+                assert controller is not None
+                one, one_reps = null_test(o.involving(controller, other), obs_pairs, null_pairs,
+                                          ci_level=ci_level)
+                frames["pair_head"].append(pd.DataFrame(one).drop(columns="boot_excess")
+                                           .assign(comparison=label, baseline=other))
+                frames["pair_null"].append(one_reps.assign(comparison=label, baseline=other))
             if rates_only:
                 continue
             frames["cross"].append(crossover_tests(o, _populations(obs_pairs), method=method,
@@ -104,7 +122,14 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
         del boot, o
     cat = {k: pd.concat(v, ignore_index=True) if v else pd.DataFrame() for k, v in frames.items()}
     return Tested(cat["head"], cat["null"], cat["cross"], cat["ord"], cat["rank"],
-                  cat["placebo"], n_boot, level, boot_excess)
+                  cat["placebo"], n_boot, level, boot_excess, cat["pair_head"], cat["pair_null"])
+
+
+def _others(o: Orderings, controller: str | None) -> list[str]:
+    """The controllers ``controller`` is ordered against in ``o`` (none without one)."""
+    if controller is None:
+        return []
+    return [a if b == controller else b for a, b in o.pairs]
 
 
 def _populations(pairs: Sequence[tuple[str, str]]) -> list[str]:

@@ -34,7 +34,7 @@ from scipy import stats
 from ..populations.identity import MATCHED_PAIR, NULL_KINDS, NullKind, PopulationSpec
 from .reversals import population_pairs
 from .significance import Orderings, PairCounts, pair_counts
-from .verdicts import decide
+from .verdicts import binomial_floor, decide
 
 RULES: tuple[str, ...] = ("sig", "raw")
 CI_LEVEL = 0.95  # coverage of the excess interval
@@ -88,7 +88,7 @@ def excess_over(obs: PairCounts, reps: Sequence[PairCounts], rule: str, *,
     row = {"observed": rate, "reversals": int(getattr(obs, f"{rule}_reversals").sum()),
            "comparable": int(getattr(obs, f"{rule}_comparable").sum()),
            "n_null": int(finite.size), "n_episodes": n_episodes,
-           **decide(rate, finite, rule, alpha=1 - ci_level)}
+           **decide(rate, finite, rule, alpha=1 - ci_level, floor=_floor(reps, rule))}
     if finite.size == 0 or not np.isfinite(rate):
         return {**row, "null_mean": np.nan, "null_sd": np.nan, "null_min": np.nan,
                 "null_max": np.nan, "episode_ci_low": np.nan, "episode_ci_high": np.nan
@@ -99,6 +99,12 @@ def excess_over(obs: PairCounts, reps: Sequence[PairCounts], rule: str, *,
             "null_sd": float(finite.std(ddof=1)) if finite.size > 1 else np.nan,
             "null_min": float(finite.min()), "null_max": float(finite.max()),
             "episode_ci_low": float(low), "episode_ci_high": float(high)}, boot
+
+
+def _floor(reps: Sequence[PairCounts], rule: str) -> float:
+    """The binomial floor of the replicates' spread (:func:`.verdicts.binomial_floor`)."""
+    return binomial_floor([getattr(r, f"{rule}_reversals").sum() for r in reps],
+                          [getattr(r, f"{rule}_comparable").sum() for r in reps])
 
 
 def replicate_table(metric: str, reps: Sequence[PairCounts], *, ci_level: float = CI_LEVEL,
@@ -186,12 +192,16 @@ def family_verdicts(headline: pd.DataFrame, null_rates: pd.DataFrame, *,
     1, of the rule's test); the per-test p-values are kept."""
     out = headline.reset_index(drop=True).copy()
     key = ["comparison", "metric", "rule"]
-    rates = {k: g["rate"].to_numpy(float) for k, g in null_rates.groupby(key, sort=False)}
+    groups = dict(list(null_rates.groupby(key, sort=False)))
+    rates = {k: g["rate"].to_numpy(float) for k, g in groups.items()}
+    floors = {k: binomial_floor(g["reversals"], g["comparable"]) if "comparable" in g else 0.0
+              for k, g in groups.items()}
     for rule, rows in out.groupby("rule", sort=False):
         tested = rows[rows["n_null"] > 0]
         m = max(len(tested), 1)
         for i, r in tested.iterrows():
-            d = decide(float(r["observed"]), rates[(r["comparison"], r["metric"], rule)], rule,
+            k = (r["comparison"], r["metric"], rule)
+            d = decide(float(r["observed"]), rates[k], rule, floor=floors[k],
                        alpha=alpha / m)
             for col in ("ci_low", "ci_high", "verdict"):
                 out.at[i, col] = d[col]

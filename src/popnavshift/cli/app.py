@@ -44,6 +44,24 @@ StudyArg = Annotated[
     str | None,
     typer.Argument(help="A built-in study (paper, quick) or a study YAML file. Default: paper."),
 ]
+Replicates = Annotated[int | None, typer.Option(
+    "--replicates", min=1, max=999,
+    help="Extend the study to this many replicates of every null design (more placebos for "
+    "calibration, a sharper null), without re-running it: only the new runs are simulated.")]
+SeedSets = Annotated[int | None, typer.Option(
+    "--seed-sets", min=1, max=100,
+    help="Extend every part that repeats its episodes on extra seed sets (the matched pair, "
+    "its swap null, the noise floor) to this many seed sets, the study seed's included: a "
+    "tighter null for the verdicts; only the new runs are simulated.")]
+
+
+def extended(study, replicates: int | None, seed_sets: int | None):
+    """``study`` extended by ``--replicates`` and ``--seed-sets`` (as it is without them)."""
+    if replicates is None and seed_sets is None:
+        return study
+    return study.extended(replicates=replicates, seed_sets=seed_sets)
+
+
 #: more worker processes than this is a typo, not a machine (each holds ~300 MB)
 MAX_WORKERS = 512
 #: columns a table of several text columns needs to stay readable; a narrower terminal

@@ -11,7 +11,19 @@ import typer
 from rich.table import Table
 
 from ..errors import InputError
-from .app import WIDE, StudyArg, app, default_folder, indented, prose, say, stdout
+from .app import (
+    WIDE,
+    Replicates,
+    SeedSets,
+    StudyArg,
+    app,
+    default_folder,
+    extended,
+    indented,
+    prose,
+    say,
+    stdout,
+)
 
 
 @app.command()
@@ -28,6 +40,8 @@ def plan(
     out: Annotated[Path | None, typer.Option(
         "--out", "-o", help="The study folder `run` would write (default: the study's own "
         "folder): how many runs it would simulate there.")] = None,
+    replicates: Replicates = None,
+    seed_sets: SeedSets = None,
 ) -> None:
     """Print the run counts of a study, per part (nothing is run), and what would decide
     each undecided headline rate (more seed sets, more null replicates, or nothing).
@@ -43,7 +57,7 @@ def plan(
     from ..engine.validate import validate_study
     from ..episodes.specs import all_episodes
 
-    s = load_study(study or "paper")
+    s = extended(load_study(study or "paper"), replicates, seed_sets)
     validate_study(s, all_episodes(s.seed), report=report)
     counts = count_runs(s, all_episodes(s.seed))
     if from_dir is not None:
@@ -81,8 +95,8 @@ def plan(
     prose("what would decide it: the fewest seed sets and null replicates that decide the "
           "verdict with 80% power if the excess stays at its estimate, with the null's "
           "spread falling with seed sets as the pilot's own replicate curve measured; "
-          "add them as `seeds:` and `replicates:` to the parts that run the comparison "
-          "and its null.")
+          "run them with `popnavshift run STUDY --seed-sets S --replicates R` (only the new "
+          "runs are simulated; `plan STUDY --seed-sets S --replicates R` counts them first).")
 
 
 def print_advice(advice, title: str) -> None:
@@ -97,7 +111,7 @@ def print_advice(advice, title: str) -> None:
                       f"{100 * r.excess:+.1f} pp", say(r.verdict), say(advice_text(r)))
         stdout.print(p)
         return
-    stdout.print(f"[bold]{title}[/]", highlight=False)
+    prose(f"[bold]{title}[/]")
     for r in advice.itertuples(index=False):
         head = (f"{say(r.comparison)} · {say(r.metric)} · {say(r.rule)}: "
                 f"{100 * r.excess:+.1f} pp, {say(r.verdict)}")

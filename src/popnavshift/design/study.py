@@ -136,6 +136,49 @@ class Study(Strict):
         """Canonical hash of everything that determines the study's results."""
         return digest(self.model_dump(mode="json", exclude={"output", "description"}))[:16]
 
+    def extended(self, *, replicates: int | None = None,
+                 seed_sets: int | None = None) -> Study:
+        """This study with more evidence and nothing else changed (``run`` then simulates
+        only the new runs, :mod:`popnavshift.engine.run_inputs`): every null design with
+        ``replicates`` replicates, and every part that repeats its episodes on extra seed
+        sets (a part with ``seeds``) on ``seed_sets`` seed sets in all (the study seed's
+        and ``seed_sets − 1`` extra ones: the part's own first, then the next unused
+        seeds). None leaves that side as it is; fewer than the study has is an error
+        (``run`` would drop finished runs from the tables; shrink the study file instead)."""
+        parts = dict(self.parts)
+        for name, part in self.parts.items():
+            update: dict[str, Any] = {}
+            if replicates is not None and part.null_design is not None:
+                if replicates < part.null_design.replicates:
+                    raise ConfigError(f"{self.where}: part {name} has "
+                                      f"{part.null_design.replicates} null replicates; "
+                                      f"--replicates {replicates} would drop some")
+                update["null_design"] = part.null_design.model_copy(
+                    update={"replicates": replicates})
+            if seed_sets is not None and part.seeds:
+                update["seeds"] = _more_seeds(part.seeds, self.seed, seed_sets,
+                                              f"{self.where}: part {name}")
+            parts[name] = part.model_copy(update=update) if update else part
+        study = self.model_copy(update={"parts": parts})
+        study._where = self._where
+        return study
+
+
+def _more_seeds(seeds: tuple[int, ...], study_seed: int, total: int,
+                where: str) -> tuple[int, ...]:
+    """``seeds`` grown to ``total − 1`` extra seed sets (the study seed's is the first):
+    the given ones first, then the smallest unused ones."""
+    extra = [s for s in seeds if s != study_seed]
+    if total < 1 + len(extra):
+        raise ConfigError(f"{where} runs {1 + len(extra)} seed sets; --seed-sets {total} "
+                          "would drop some")
+    candidate = 1
+    while 1 + len(extra) < total:
+        if candidate != study_seed and candidate not in extra:
+            extra.append(candidate)
+        candidate += 1
+    return tuple(extra)
+
 
 def _format_error(err: ValidationError, where: str) -> str:
     first = err.errors()[0]

@@ -22,15 +22,20 @@ import re
 from collections.abc import Sequence
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pandas as pd
 
+from ..controller_ids import controller_id, parse_controller_id
 from ..errors import ConfigError
 from ..hashing import digest, sources_digest
 from ..outputs import check_writable
-from ..read.access import EVALUATE_DIR, EVALUATION, card_intact
+from ..read.access import CARD, EVALUATE_DIR, EVALUATION, card_intact
+from ..tables import RUN_KEY
 from ..version import __version__
+
+if TYPE_CHECKING:
+    from ..design.study import Study
 
 
 def slug(identity: str) -> str:
@@ -91,24 +96,42 @@ def card_code() -> str:
     return digest([__version__, sources_digest("analysis", "evaluate")])
 
 
-def tables_digest(*tables: pd.DataFrame) -> str:
-    """Hex sha256 of the content of ``tables`` (every row and column, in order)."""
+def runs_digest(*folders: Path) -> str:
+    """Hex sha256 of the runs a card can read: the keys and ``run_inputs`` (the digest of
+    each run's own inputs and code, :mod:`popnavshift.engine.run_inputs`) of the study
+    folder's runs and the card's own, as stored. Equal digests, equal runs and pedestrians
+    (a run is a function of its inputs); read from two columns, so a current card is
+    recognised without loading its tables."""
     h = hashlib.sha256()
-    for table in tables:
-        h.update(",".join(map(str, table.columns)).encode() + b"\0")
-        h.update(pd.util.hash_pandas_object(table, index=False).to_numpy().tobytes())
+    for folder in folders:
+        path = Path(folder) / "runs.parquet"
+        if not path.is_file():
+            h.update(b"-\0")
+            continue
+        keys = pd.read_parquet(path, columns=[*RUN_KEY, "run_inputs"])
+        h.update(pd.util.hash_pandas_object(keys, index=False).to_numpy().tobytes())
     return h.hexdigest()
 
 
+def run_code(controller: str, baselines: Sequence[str]) -> str:
+    """Stamp of the code the card's runs execute now: the simulator and each compared
+    controller's own module (:func:`popnavshift.engine.stamps.code_stamps`). With the
+    study's configuration and the stored runs unchanged, an equal stamp means ``evaluate``
+    would simulate nothing: a card can be reused without planning its runs."""
+    from ..engine.stamps import code_stamps  # loads navground: only when a card is judged
+
+    return digest(code_stamps((controller, *baselines, "none")))
+
+
 def card_identity(controller: str, baselines: Sequence[str], config_hash: str,
-                  tables: tuple[pd.DataFrame, pd.DataFrame], *, n_boot: int, seed: int,
+                  runs: str, *, n_boot: int, seed: int,
                   safety_threshold: float | None) -> dict[str, Any]:
     """Everything the verdict of ``controller``'s card depends on (module doc), as
-    ``card.json`` records it; ``tables``: the runs and pedestrians it is computed on."""
+    ``card.json`` records it; ``runs``: the :func:`runs_digest` of what it reads."""
     return {"controller": controller, "baselines": list(baselines),
             "config_hash": config_hash, "n_boot": n_boot, "seed": seed,
-            "safety_threshold": safety_threshold, "runs": tables_digest(*tables),
-            "code": card_code()}
+            "safety_threshold": safety_threshold, "runs": runs,
+            "run_code": run_code(controller, baselines), "code": card_code()}
 
 
 #: how each part of a card's identity is named when it changed
@@ -120,6 +143,7 @@ _CHANGED = {
     "seed": "it was made with --seed {old} (now {new})",
     "safety_threshold": "it was made with --safety-threshold {old} (now {new})",
     "runs": "its runs or pedestrians changed since it was made",
+    "run_code": "the simulator's or a compared controller's code changed since it was made",
     "code": "the code that makes a card changed since it was made",
 }
 
@@ -142,3 +166,24 @@ def _shown(value: Any) -> str:
         return "none"
     return ", ".join(map(str, value)) if isinstance(value, list) else str(value)
 
+
+def current_card(controller: str, study: Study, base_folder: Path, out: Path | None = None, *,
+                 baselines: Sequence[str], n_boot: int = 1000, seed: int = 0,
+                 safety_threshold: float | None = None) -> tuple[Path, str]:
+    """The folder of ``controller``'s card and why the card there cannot stand for the one
+    :func:`.run.make_card` would make now ("" when it can: :func:`card_is_current`).
+    Reads two columns of the runs tables and the card's manifest, nothing else: a current
+    card is recognised in a moment, without planning or loading a run."""
+    identity = controller_id(*parse_controller_id(controller))
+    base_ids = tuple(b for b in dict.fromkeys(baselines) if b != identity)
+    out = Path(out) if out is not None else card_folder(base_folder, identity)
+    if not (out / CARD).is_file():
+        return out, "no card yet"
+    from .safety import SAFETY_THRESHOLD
+
+    threshold = SAFETY_THRESHOLD if safety_threshold is None else safety_threshold
+    check_card_settings(n_boot, seed, threshold)
+    wanted = card_identity(identity, base_ids, study.config_hash(),
+                           runs_digest(base_folder, out), n_boot=n_boot, seed=seed,
+                           safety_threshold=threshold)
+    return out, card_is_current(out, wanted)

@@ -8,7 +8,8 @@ every file as written (:mod:`.card_files`); so cards made under other rules are 
 side by side, they are made again. Then ``compare_table`` (pure) puts every controller in one
 table, on the union of their runs — the same episodes and populations for all:
 
-* the card's verdict label and safety findings;
+* the card's two verdicts: robustness, with the rate that carries it (its excess over the
+  null and interval), and safety, with its findings;
 * outcome shares [%] with exact (Clopper–Pearson) 95 % intervals;
 * robot time, mean delay, worst decile and CVaR-90 [s], each the mean over (cell,
   population) rows of the cell statistic (as on the card);
@@ -20,6 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -33,11 +35,12 @@ from ..analysis.verdicts import clopper_pearson
 from ..controller_ids import controller_id, parse_controller_id
 from ..design.study import Study
 from ..errors import InputError
-from ..read.access import CARD, card_intact
+from ..read.access import card_intact
 from ..sim.controllers import CONTROLLERS
 from ..tables import NO_ROBOT, RUN_KEY
-from .card_files import card_folder, card_identity, card_is_current, check_card_settings
+from .card_files import check_card_settings, current_card
 from .run import BASELINES, evaluate, make_card
+from .safety import SAFETY_THRESHOLD, failure
 
 COMPARE_METRICS: tuple[str, ...] = RANKED_NAMES  # every ranked metric, as the card
 LEVEL = 0.95
@@ -60,16 +63,33 @@ class Comparison:
     #: the rules every card was made under (one set for all: n_boot, seed,
     #: safety_threshold, baselines)
     settings: dict[str, Any] = field(default_factory=dict)
+    #: when the comparison was made (ISO 8601, UTC, seconds)
+    made: str = ""
+    #: what it is: "compare" (controllers named) or "leaderboard" (every controller)
+    kind: str = "compare"
+
+
+#: the outcome shares compared: a run's outcome, a pedestrian collision split by who moved
+#: (:func:`.safety.failure`: ``standing_contact`` is a pedestrian walking into the standing
+#: robot, ``pedestrian_collision`` the robot moving)
+SHARES: tuple[str, ...] = (*OUTCOMES[:2], "standing_contact", *OUTCOMES[2:])
+#: the robot's run metrics compared, mean over its runs [m, m, s]
+RUN_MEANS = {"min_clearance": "robot_min_clearance", "path_length": "robot_path_length",
+             "stop_time": "robot_stop_time"}
 
 
 def outcome_shares(runs: pd.DataFrame, controllers: Sequence[str]) -> pd.DataFrame:
-    """Per controller (index): ``runs`` and, per outcome, ``<outcome>_pct`` [%] with its
-    Clopper–Pearson ``<outcome>_low`` / ``<outcome>_high`` [%] over the controller's runs."""
+    """Per controller (index): ``runs``, per outcome of :data:`SHARES` ``<outcome>_pct`` [%]
+    with its Clopper–Pearson ``<outcome>_low`` / ``<outcome>_high`` [%] over the
+    controller's runs, and the means of :data:`RUN_MEANS`."""
     rows = []
+    kinds = failure(runs)
     for ctrl in controllers:
-        outcome = runs.loc[runs["controller"] == ctrl, "outcome"]
+        mine = runs["controller"] == ctrl
+        outcome = kinds[mine]
         row: dict[str, Any] = {"controller": ctrl, "runs": len(outcome)}
-        for o in OUTCOMES:
+        row.update({k: float(runs.loc[mine, c].mean()) for k, c in RUN_MEANS.items()})
+        for o in SHARES:
             k = int((outcome == o).sum())
             low, high = clopper_pearson(k, len(outcome), LEVEL)
             row.update({f"{o}_pct": 100 * k / len(outcome) if len(outcome) else np.nan,
@@ -110,43 +130,57 @@ def compare_table(runs: pd.DataFrame, pedestrians: pd.DataFrame, controllers: Se
     per_pop = population_means(cells, controllers)
     means = cells[cells["controller"].isin(controllers)].groupby("controller")[
         list(COMPARE_METRICS)].mean()
-    head = pd.DataFrame({
-        "verdict": [verdicts[c]["label"] for c in controllers],
-        "safety_findings": [len(verdicts[c]["safety"]) for c in controllers],
-        "safety": [" / ".join(verdicts[c]["safety"]) for c in controllers],
-    }, index=pd.Index(list(controllers), name="controller"))
+    head = verdict_columns(verdicts, controllers)
     table = pd.concat([head, outcome_shares(runs, controllers), means.reindex(head.index),
                        ranks(cells, per_pop, controllers)], axis=1)
     return table.reset_index(), per_pop
+
+
+def verdict_columns(verdicts: dict[str, dict[str, Any]],
+                    controllers: Sequence[str]) -> pd.DataFrame:
+    """Per controller (index): its robustness verdict with the rate that carries it (design,
+    metric, excess over the null and its simultaneous interval, in percentage points) and
+    its safety verdict with the number of unsafe findings and the findings themselves."""
+    rows = []
+    for c in controllers:
+        rob, safe = verdicts[c]["robustness"], verdicts[c]["safety"]
+        row = rob.get("row") or {}
+        rows.append({"controller": c, "robustness": rob["label"],
+                     "robustness_design": row.get("design", ""),
+                     "robustness_metric": row.get("metric", ""),
+                     "excess_pp": 100 * row["excess"] if row else np.nan,
+                     "excess_low_pp": 100 * row["ci_low"] if row else np.nan,
+                     "excess_high_pp": 100 * row["ci_high"] if row else np.nan,
+                     "safety": safe["label"], "safety_findings": len(safe["findings"]),
+                     "safety_text": " / ".join(safe["findings"])})
+    return pd.DataFrame(rows).set_index("controller")
 
 
 # ------------------------------------------------------------------ files and runs
 def compare(controllers: Sequence[str], study: Study, base_folder: Path, *, workers: int = 2,
             n_boot: int = 1000, seed: int = 0, safety_threshold: float | None = None,
             baselines: Sequence[str] = BASELINES, show_progress: bool = True,
-            log: Log | None = None) -> Comparison:
+            log: Log | None = None, kind: str = "compare") -> Comparison:
     """Evaluate (cached) every controller and make its card unless the one in
     ``STUDY/evaluate`` is current under these settings (:func:`.card_files.card_is_current`:
     same identity, every file intact; else it is made again and ``log`` says why), then
     compare them all on the union of their runs (module doc)."""
     say = log or (lambda _msg: None)
     ids = tuple(dict.fromkeys(controller_id(*parse_controller_id(c)) for c in controllers))
-    check_card_settings(n_boot, seed, safety_threshold)
+    threshold = SAFETY_THRESHOLD if safety_threshold is None else safety_threshold
+    check_card_settings(n_boot, seed, threshold)
     for c in (*ids, *baselines):  # every name must resolve before anything runs
         CONTROLLERS.make(c)
     evaluations, verdicts, cards = [], {}, {}
     for c in ids:
-        out = card_folder(base_folder, c)
-        ev = evaluate(c, study, base_folder, out, baselines=baselines, workers=workers,
+        ev = evaluate(c, study, base_folder, baselines=baselines, workers=workers,
                       show_progress=show_progress, log=say)
-        identity = card_identity(ev.controller, ev.baselines, study.config_hash(),
-                                 (ev.runs, ev.pedestrians), n_boot=n_boot, seed=seed,
-                                 safety_threshold=safety_threshold)
-        had = any((out / name).exists() for name in (CARD, "card.html", "card.png"))
-        why = card_is_current(out, identity)
+        out, why = current_card(c, study, base_folder, ev.out, baselines=baselines,
+                                n_boot=n_boot, seed=seed, safety_threshold=threshold)
         if why:
-            make_card(ev, n_boot=n_boot, seed=seed, safety_threshold=safety_threshold)
-            say(f"{c}: card → {out / 'card.html'}" + (f" (made again: {why})" if had else ""))
+            make_card(ev, n_boot=n_boot, seed=seed, safety_threshold=threshold)
+            made_again = "" if why == "no card yet" else f" (made again: {why})"
+            say(f"{c}: card → {out / 'card.html'}{made_again}")
         else:
             say(f"{c}: card reused ({out / 'card.html'})")
         doc, why = card_intact(out)
@@ -160,6 +194,7 @@ def compare(controllers: Sequence[str], study: Study, base_folder: Path, *, work
     runs = runs[runs["controller"].isin([*ids, NO_ROBOT])]
     peds = peds[peds["controller"].isin([*ids, NO_ROBOT])]
     table, per_pop = compare_table(runs, peds, ids, verdicts)
-    settings = {"n_boot": n_boot, "seed": seed, "safety_threshold": safety_threshold,
+    settings = {"n_boot": n_boot, "seed": seed, "safety_threshold": threshold,
                 "baselines": list(baselines)}
-    return Comparison(ids, table, per_pop, cards, verdicts, study, Path(base_folder), settings)
+    return Comparison(ids, table, per_pop, cards, verdicts, study, Path(base_folder), settings,
+                      datetime.now(UTC).isoformat(timespec="seconds"), kind)

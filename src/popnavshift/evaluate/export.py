@@ -9,6 +9,8 @@ spreadsheet would run as a formula are written safe (:func:`popnavshift.io.csv_t
 
 from __future__ import annotations
 
+import re
+import textwrap
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +20,7 @@ import pandas as pd
 from ..io import csv_text, write_text
 
 FORMATS: tuple[str, ...] = ("csv", "md", "tex")
+_LABEL = re.compile(r"[^A-Za-z0-9:.-]")  # what a \label may hold: any other character → -
 _TEX = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#",
         "_": r"\_", "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}",
         "^": r"\textasciicircum{}"}
@@ -61,17 +64,43 @@ def tex_escape(text: str) -> str:
     return "".join(" " if not ch.isprintable() else _TEX.get(ch, ch) for ch in text)
 
 
-def to_latex(table: pd.DataFrame, digits: int = 2) -> str:
+def _stacked(header: str, width: int) -> str:
+    """A column header broken between words into lines of about ``width`` characters, as
+    a one-column tabular (plain LaTeX), so that a long name does not widen its column."""
+    lines = textwrap.wrap(header, width, break_long_words=False, break_on_hyphens=False) or [""]
+    if len(lines) == 1:
+        return tex_escape(header)
+    return ("\\begin{tabular}[b]{@{}c@{}}" + r" \\{} ".join(tex_escape(x) for x in lines)
+            + "\\end{tabular}")
+
+
+def to_latex(table: pd.DataFrame, digits: int = 2, *, header_width: int | None = None
+             ) -> str:
     """A booktabs ``tabular`` of ``table``'s columns (the index is dropped): numbers right,
-    text left, every cell escaped. Needs ``\\usepackage{booktabs}``."""
+    text left, every cell escaped; with ``header_width`` each header is broken into lines
+    of about that many characters. Needs ``\\usepackage{booktabs}``."""
     align = "".join("r" if pd.api.types.is_numeric_dtype(table[c]) else "l"
                     for c in table.columns)
-    lines = [f"\\begin{{tabular}}{{{align}}}", "\\toprule",
-             " & ".join(tex_escape(str(c)) for c in table.columns) + r" \\", "\\midrule"]
+    head = [_stacked(str(c), header_width) if header_width else tex_escape(str(c))
+            for c in table.columns]
+    lines = [f"\\begin{{tabular}}{{{align}}}", "\\toprule", " & ".join(head) + r" \\",
+             "\\midrule"]
     for row in table.itertuples(index=False):
         lines.append(" & ".join(tex_escape(_cell(v, digits, "--")) for v in row) + r" \\")
     lines += ["\\bottomrule", "\\end{tabular}"]
     return "\n".join(lines) + "\n"
+
+
+def latex_table(table: pd.DataFrame, caption: str, *, label: str, digits: int = 2) -> str:
+    """``table`` as a complete LaTeX ``table`` float: centred, the caption (plain text,
+    escaped here) and label above, the booktabs ``tabular`` scaled to the
+    line width (so it fits any page without an overfull box), headers broken into short
+    lines so that the scale stays readable. Needs ``booktabs`` and ``graphicx``."""
+    body = to_latex(table, digits, header_width=10).rstrip("\n")
+    return ("\\begin{table}[tbp]\n\\centering\n"
+            f"\\caption{{{tex_escape(caption)}}}\n\\label{{{_LABEL.sub('-', label)}}}\n"
+            "\\footnotesize\n\\resizebox{\\linewidth}{!}{%\n"
+            f"{body}%\n}}\n\\end{{table}}\n")
 
 
 def table_text(table: pd.DataFrame, fmt: str, digits: int = 2) -> str:

@@ -27,7 +27,7 @@ would decide it. The false-positive rate of each rule on this controller's own p
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -49,22 +49,22 @@ COLUMNS = ("design", "baseline", "metric", "rule", "observed", "null_mean", "exc
 
 @dataclass
 class Robustness:
-    """The card's robustness tables: ``headline`` (one row per design, baseline, metric and
-    rule, decided over the card's table), ``null_rates`` (every replicate's rate),
-    ``calibration`` (each rule's false-positive rate on the card's own placebos), the
-    ``label`` and its ``text``; ``missing`` says why a design could not be tested."""
+    """The card's robustness tables: ``headline`` (one row per design, metric and rule: the
+    controller's orderings against every baseline pooled, decided over the card's table),
+    ``null_rates`` (every replicate's rate), ``by_baseline`` (the same per baseline, decided
+    over its own table: which baseline carries a verdict), ``calibration`` (each rule's
+    false-positive rate on the card's own placebos), the ``label`` and its ``text``;
+    ``missing`` says why a design could not be tested."""
 
     headline: pd.DataFrame
     null_rates: pd.DataFrame
+    by_baseline: pd.DataFrame
     calibration: pd.DataFrame
     label: str
     text: str
     missing: dict[str, str]
-
-
-def comparison_key(design: str, baseline: str) -> str:
-    """The comparison label of one (design, baseline) in the card's tables."""
-    return f"{design} vs {baseline}"
+    #: the raw-rule row that carries the label (:func:`deciding_row`), empty without one
+    row: dict = field(default_factory=dict)
 
 
 def robustness_tables(runs: pd.DataFrame, peds: pd.DataFrame, controller: str,
@@ -77,52 +77,83 @@ def robustness_tables(runs: pd.DataFrame, peds: pd.DataFrame, controller: str,
     present = [spec_of(specs, p) for p in runs["population"].unique()]
     conditions = {s.name for s in present if s.role == "observed"}
     designs = headline_designs(present, [p for p in observed if p in conditions])
-    heads, nulls, missing = [], [], {}
+    keep = [controller, *baselines, NO_ROBOT]
+    runs, peds = runs[runs["controller"].isin(keep)], peds[peds["controller"].isin(keep)]
+    frames: dict[str, list[pd.DataFrame]] = {"head": [], "null": [], "pair": [], "pair_null": []}
+    missing: dict[str, str] = {}
     for i, (label, design) in enumerate(designs.items()):
         if not design.nulls:
             missing[label] = f"the study ran no null of the {label} comparison"
             continue
-        pops = design_populations(design)
-        for j, base in enumerate(baselines):
-            keep = [controller, base, NO_ROBOT]
-            r, p = complete_design(runs[runs["controller"].isin(keep)],
-                                   peds[peds["controller"].isin(keep)], pops)
-            if r.empty or not {controller, base} <= set(r["controller"]):
-                missing[comparison_key(label, base)] = "no episode holds both controllers"
-                continue
-            key = comparison_key(label, base)
-            obs_pops = list(dict.fromkeys(x for pair in design.observed for x in pair))
-            tested = test_comparisons(r, p, {key: design}, obs_pops,
-                                      rng=np.random.default_rng([rng_seed, i, j]),
-                                      n_boot=n_boot, rates_only=True)
-            heads.append(tested.headline.assign(
-                design=label, baseline=base, seed_sets=int(seed_sets(r).nunique()),
-                null=design.null))
-            nulls.append(tested.null_rates.assign(design=label, baseline=base))
-    if not heads:
-        return Robustness(pd.DataFrame(columns=COLUMNS), pd.DataFrame(), pd.DataFrame(),
-                          UNDECIDED_LABEL, "no null design to decide against: "
-                          + "; ".join(missing.values()), missing)
-    null_rates = pd.concat(nulls, ignore_index=True)
-    head = family_verdicts(pd.concat(heads, ignore_index=True), null_rates)
+        r, p = complete_design(runs, peds, design_populations(design))
+        if r.empty or controller not in set(r["controller"]):
+            missing[label] = f"no episode of the {label} design holds the controller's runs"
+            continue
+        obs_pops = list(dict.fromkeys(x for pair in design.observed for x in pair))
+        tested = test_comparisons(r, p, {label: design}, obs_pops,
+                                  rng=np.random.default_rng([rng_seed, i]), n_boot=n_boot,
+                                  rates_only=True, controller=controller)
+        extra = {"design": label, "seed_sets": int(seed_sets(r).nunique()),
+                 "null": design.null}
+        frames["head"].append(tested.headline.assign(baseline="all", **extra))
+        frames["null"].append(tested.null_rates.assign(baseline="all", design=label))
+        # per baseline, the comparison label names the baseline: every rate of the
+        # breakdown is one test of its own family and one comparison of its placebos
+        by = tested.pair_headline.assign(**extra)
+        frames["pair"].append(by.assign(comparison=by["comparison"] + " vs " + by["baseline"]))
+        pn = tested.pair_null_rates
+        frames["pair_null"].append(pn.assign(
+            design=label, comparison=pn["comparison"] + " vs " + pn["baseline"]))
+    if not frames["head"]:
+        empty = pd.DataFrame(columns=COLUMNS)
+        return Robustness(empty, pd.DataFrame(), empty, pd.DataFrame(), UNDECIDED_LABEL,
+                          "no null design to decide against: " + "; ".join(missing.values()),
+                          missing)
+    cat = {k: pd.concat(v, ignore_index=True) for k, v in frames.items()}
+    head = family_verdicts(cat["head"], cat["null"])
+    by_baseline = family_verdicts(cat["pair"], cat["pair_null"])
     family = int(head.loc[head["rule"] == "raw", "family"].max())
-    calibration = calibration_table(null_rates, family=family)
-    label, text = robustness_label(head, controller)
-    return Robustness(head[[c for c in COLUMNS if c in head]], null_rates, calibration, label,
-                      text, missing)
+    calibration = calibration_table(cat["null"], family=family)
+    label, text = robustness_label(head, by_baseline, controller)
+    columns = [c for c in COLUMNS if c in head]
+    return Robustness(head[columns], cat["null"], by_baseline[columns], calibration, label,
+                      text, missing, deciding_row(head, label))
 
 
-def robustness_label(head: pd.DataFrame, controller: str) -> tuple[str, str]:
-    """The card's label and its sentence from the raw rule's decided rows (module doc)."""
+def deciding_row(head: pd.DataFrame, label: str) -> dict:
+    """The raw-rule row a leaderboard shows for the label: the rate most above its null for
+    *population-sensitive* (largest t), else the rate whose interval reaches highest (what
+    *robust* had to rule out, or what keeps *undecided* open)."""
+    raw = head[head["rule"] == "raw"]
+    above = raw[raw["verdict"] == ABOVE]
+    if label == SENSITIVE and len(above):
+        row = above.loc[above["t"].idxmax()]
+    elif raw["ci_high"].notna().any():
+        row = raw.loc[raw["ci_high"].idxmax()]
+    else:  # no rate had a spread between its replicates to be judged by
+        return {}
+    keep = ("design", "metric", "observed", "null_mean", "excess", "ci_low", "ci_high", "t",
+            "p_adj", "p_value", "verdict")
+    return {k: (v.item() if hasattr(v, "item") else v) for k, v in row.items() if k in keep}
+
+
+def robustness_label(head: pd.DataFrame, by_baseline: pd.DataFrame,
+                     controller: str) -> tuple[str, str]:
+    """The card's label and its sentence from the raw rule's decided rows (module doc); a
+    population-sensitive verdict names the baselines whose own rates are above their null."""
     raw = head[head["rule"] == "raw"]
     level = f"{100 * (1 - ALPHA):.0f}% simultaneous intervals over {len(raw)} rates"
     above = raw[raw["verdict"] == ABOVE]
     if len(above):
-        where = "; ".join(f"{r.metric} against {r.baseline} ({r.design}: "
-                          f"{100 * r.excess:+.1f} pp [{100 * r.ci_low:+.1f}, "
-                          f"{100 * r.ci_high:+.1f}])" for r in above.itertuples())
-        return SENSITIVE, (f"{controller}'s orderings reverse with the population more often "
-                           f"than under its own null runs: {where} ({level}).")
+        pairs = by_baseline[(by_baseline["rule"] == "raw") & (by_baseline["verdict"] == ABOVE)]
+        where = "; ".join(f"{r.metric} ({r.design}: {100 * r.excess:+.1f} pp "
+                          f"[{100 * r.ci_low:+.1f}, {100 * r.ci_high:+.1f}])"
+                          for r in above.itertuples())
+        carried = ("; against " + ", ".join(sorted(set(pairs["baseline"]))) + " alone"
+                   if len(pairs) else "; no baseline alone carries it")
+        return SENSITIVE, (f"{controller}'s orderings against the baselines reverse with the "
+                           f"population more often than under its own null runs: {where}"
+                           f"{carried} ({level}).")
     settled = raw["verdict"].isin([SMALL, BELOW])
     if len(raw) and settled.all():
         worst = float(raw["ci_high"].max())
@@ -130,7 +161,14 @@ def robustness_label(head: pd.DataFrame, controller: str) -> tuple[str, str]:
                         f"{len(raw)} reversal rates (largest upper end {100 * worst:+.1f} pp; "
                         f"{level}).")
     open_rows = raw[~settled]
-    where = ", ".join(f"{r.metric} vs {r.baseline} ({r.design})"
-                      for r in open_rows.itertuples())
+    width = open_rows["ci_high"] - open_rows["ci_low"]
+    if width.isna().all():
+        return UNDECIDED_LABEL, (f"None of its {len(raw)} rates could be judged: its null "
+                                 "replicates did not vary (or were too few).")
+    widest = open_rows.loc[width.idxmax()]
     return UNDECIDED_LABEL, (f"Neither an excess over the null nor its absence (< "
-                             f"{100 * MIN_EFFECT:.0f} pp) is shown for {where} ({level}).")
+                             f"{100 * MIN_EFFECT:.0f} pp) is shown for {len(open_rows)} of "
+                             f"its {len(raw)} rates; the least decided: {widest.metric} "
+                             f"({widest.design}: {100 * widest.excess:+.1f} pp "
+                             f"[{100 * widest.ci_low:+.1f}, {100 * widest.ci_high:+.1f}]) "
+                             f"({level}).")

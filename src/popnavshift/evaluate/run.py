@@ -27,9 +27,11 @@ A run in which the controller raises is recorded as ``controller_error`` (see
 
 from __future__ import annotations
 
+import shlex
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -39,28 +41,34 @@ import pandas as pd
 from ..analysis import episode_cells
 from ..analysis.replicates import seed_sets
 from ..controller_ids import controller_id, parse_controller_id
-from ..design.study import Study
+from ..design.study import Study, builtin_studies
 from ..engine.batch_plan import plan_batches, run_plan
+from ..engine.pending import pending_runs
 from ..engine.rebuild import rebuild_run
 from ..engine.runner import run_study
 from ..engine.store import RunStore
 from ..engine.worker import Context
-from ..errors import ConfigError
+from ..errors import ConfigError, InputError
 from ..io import write_json
 from ..outputs import FileSet
 from ..paper import PAPER_CONTROLLERS
 from ..pipeline import read_table
 from ..read.access import CARD
+from ..read.checks import read_manifest
 from ..sim.check import ControllerContractError, check_controller
 from ..sim.controllers import CONTROLLERS
 from ..tables import NO_ROBOT
 from ..version import __version__
 from ..viz.replay import render_svg, run_outcome
+from .advice import Advice, advice_text, advise
 from .card import OUTCOME_LABELS, Card, card_tables
-from .card_files import card_folder, card_identity, check_card_settings, check_out
+from .card_files import card_folder, card_identity, check_card_settings, check_out, runs_digest
 from .card_page import write_card
 from .export import table_text
+from .robustness import robustness_tables
 from .runs import card_tables_of, evaluation_parts, main_part_rows, plan_extra
+from .safety import SAFETY_THRESHOLD
+from .verdict import Verdict
 
 BASELINES: tuple[str, ...] = PAPER_CONTROLLERS  # a card sets a controller beside the paper's
 Tables = tuple[pd.DataFrame, pd.DataFrame]  # runs, pedestrians
@@ -238,15 +246,22 @@ def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0,
     intervals); ``safety_threshold``, when given, is a share of the controller's runs
     above which a collision kind or controller errors read unsafe whatever the baselines
     do."""
-    check_card_settings(n_boot, seed, safety_threshold)
+    threshold = SAFETY_THRESHOLD if safety_threshold is None else safety_threshold
+    check_card_settings(n_boot, seed, threshold)
     identity = card_identity(ev.controller, ev.baselines, ev.study.config_hash(),
-                             (ev.runs, ev.pedestrians), n_boot=n_boot, seed=seed,
-                             safety_threshold=safety_threshold)
+                             runs_digest(ev.base_folder, ev.out), n_boot=n_boot, seed=seed,
+                             safety_threshold=threshold)
     n_sets = int(seed_sets(ev.runs).nunique())
-    card = card_tables(ev.runs, ev.pedestrians, ev.controller, ev.baselines,
-                       rng=np.random.default_rng(seed), n_boot=n_boot, seed_sets=n_sets,
-                       safety_threshold=safety_threshold)
+    observed = ev.study.require_main()[1].populations
+    every = (ev.every_runs if ev.every_runs is not None else ev.runs,
+             ev.every_pedestrians if ev.every_pedestrians is not None else ev.pedestrians)
+    rob = robustness_tables(*every, ev.controller, ev.baselines, ev.study.population_specs(),
+                            observed, rng_seed=seed, n_boot=n_boot)
+    card = card_tables(ev.runs, ev.pedestrians, ev.controller, ev.baselines, rob,
+                       rng=np.random.default_rng(seed), n_boot=n_boot,
+                       safety_threshold=threshold, decide=decide_text(ev, advise(rob.headline)))
     svg, note = _worst_replay(ev, card)
+    made = datetime.now(UTC).isoformat(timespec="seconds")
     meta = {"study": ev.study.name, "part": ev.part, "check": ev.check, "reused": ev.reused,
             "executed": ev.executed, "n_runs": ev.counts["controller_runs"],
             "n_errors": ev.counts["controller_errors"],
@@ -256,7 +271,9 @@ def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0,
             "mappings": ", ".join(sorted(ev.runs["mapping"].unique())),
             "replay_note": note, "n_boot": n_boot, "seed": seed,
             "base_folder": str(ev.base_folder), "seed_sets": n_sets, "n_used": len(ev.runs),
-            "safety_threshold": safety_threshold}
+            "safety_threshold": threshold, "parts": ", ".join(ev.parts),
+            "n_every": len(every[0]), "version": __version__,
+            "config_hash": ev.study.config_hash(), "made": made}
     tables = card.tables()
     main = tables["outcomes"][list(OUTCOME_LABELS)].rename(columns=OUTCOME_LABELS)
     v = card.verdict
@@ -266,11 +283,51 @@ def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0,
         for fmt in ("md", "tex"):  # the main table, for a paper
             files.add_text(f"outcomes.{fmt}", table_text(main, fmt))
         html, png = write_card(card, meta, files, svg)
-        files.commit({**identity, "tables": [f"{n}.csv" for n in tables], "verdict": {
-            "label": v.label, "text": v.text, "safety": v.safety,
-            "seed_sets_to_decide": (v.seed_sets_to_decide if np.isfinite(v.seed_sets_to_decide)
-                                    else None)}})
+        files.commit({**identity, "tables": [f"{n}.csv" for n in tables],
+                      "verdict": verdict_record(v), "popnavshift": __version__,
+                      "made": made})
     return html, png
+
+
+def verdict_record(v: Verdict) -> dict[str, Any]:
+    """The card's two verdicts as ``card.json`` records them."""
+    return {"robustness": {"label": v.robustness, "text": v.robustness_text,
+                           "decide": v.decide, "row": v.row},
+            "safety": {"label": v.safety.label, "text": v.safety.text,
+                       "findings": v.safety.findings, "threshold": v.safety.threshold}}
+
+
+def decide_text(ev: Evaluation, advice: Advice) -> str:
+    """What would decide the card's undecided rates: the evaluate command that extends the
+    study as ``advice`` says, the runs it adds (the study's and the controller's own) and
+    their minutes at the study's measured pace."""
+    if advice.seed_sets is None and advice.replicates is None:
+        return advice_text(advice, "", None, None)
+    bigger = ev.study.extended(replicates=advice.replicates, seed_sets=advice.seed_sets)
+    compared = (*ev.baselines, ev.controller)
+    pending = pending_runs(bigger, ev.base_folder)
+    runs = None if pending.execute is None else pending.execute + (
+        len(plan_extra(bigger, ev.parts, compared)) - len(plan_extra(ev.study, ev.parts,
+                                                                     compared)))
+    pace = _pace(ev.base_folder)
+    minutes = None if runs is None or pace is None else runs / pace / 60
+    study = ev.study.name if ev.study.name in builtin_studies() else ev.study.where
+    options = "".join(f" --{flag} {value}" for flag, value in
+                      (("seed-sets", advice.seed_sets), ("replicates", advice.replicates))
+                      if value is not None)
+    command = (f"popnavshift evaluate {shlex.quote(ev.controller)} --study "
+               f"{shlex.quote(study)} -d {shlex.quote(str(ev.base_folder))}{options}")
+    return advice_text(advice, command, runs, minutes)
+
+
+def _pace(folder: Path) -> float | None:
+    """Runs executed per second when the study last ran (its manifest), None unknown."""
+    try:
+        timings = (read_manifest(folder) or {}).get("timings", {})
+    except InputError:
+        return None
+    done, seconds = timings.get("runs_executed"), timings.get("simulation_s")
+    return done / seconds if done and seconds else None
 
 
 def _worst_replay(ev: Evaluation, card: Card) -> tuple[str | None, str]:

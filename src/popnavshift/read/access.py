@@ -175,6 +175,12 @@ def results(study: str | Path) -> dict[str, pd.DataFrame]:
     return {name: read_csv(path) for name, path in paths.items() if path.is_file()}
 
 
+def _verdict_ok(part: object, field: str) -> bool:
+    """Whether one of a card's two verdicts reads back: a label, a text and ``field``."""
+    return (isinstance(part, dict) and isinstance(part.get("label"), str)
+            and isinstance(part.get("text"), str) and field in part)
+
+
 def card_intact(card: Path) -> tuple[dict[str, Any], str]:
     """A card folder's ``card.json`` and "", or what it holds and why the card cannot be
     used: no card, a damaged ``card.json``, a file missing or changed since."""
@@ -182,8 +188,8 @@ def card_intact(card: Path) -> tuple[dict[str, Any], str]:
     if why:
         return doc, why
     verdict, tables = doc.get("verdict"), doc.get("tables")
-    if not (isinstance(verdict, dict) and isinstance(verdict.get("label"), str)
-            and isinstance(verdict.get("safety"), list)
+    if not (isinstance(verdict, dict) and _verdict_ok(verdict.get("robustness"), "decide")
+            and _verdict_ok(verdict.get("safety"), "findings")
             and isinstance(tables, list) and all(t in doc["files"] for t in tables)):
         return doc, f"{Path(card) / CARD} is damaged (no verdict or tables)"
     return doc, verify(card, doc)
