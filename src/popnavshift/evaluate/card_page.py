@@ -329,8 +329,8 @@ style="max-width:100%">{% endif %}
 <h2>Outcomes (main part)</h2><div class="wrap"><table><tr><th>controller</th><th>success %</th>
 <th>ped. coll. % (robot moving)</th><th>standing contacts %</th><th>world coll. %</th>
 <th>timeout %</th><th>ctrl error %</th><th>robot time [s]</th><th>mean delay [s]</th>
-<th>worst decile [s]</th><th>blocked %</th><th>min. clearance [m]</th><th>path [m]</th><th>stop time [s]</th>
-<th>runs</th></tr>
+<th>worst decile [s]</th><th>blocked %</th><th>min. clearance [m]</th><th>path [m]</th>
+<th>stop time [s]</th><th>runs</th></tr>
 {% for o in outcomes %}<tr><td class="l">{{ o.controller }}</td><td>{{ o.success_pct | f(1) }}</td>
 <td>{{ o.pedestrian_collision_pct | f(1) }}</td><td>{{ o.standing_contact_pct | f(1) }}</td>
 <td>{{ o.world_collision_pct | f(1) }}</td><td>{{ o.timeout_pct | f(1) }}</td>
