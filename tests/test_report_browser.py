@@ -211,13 +211,10 @@ def test_the_compare_page_loads_without_console_errors(tmp_path):
     ctrls = ("reactive", "HRVO", "<b>odd & name</b>")  # escaped, not markup
     runs, peds = synthetic_study({"p1": no_effect, "p2": no_effect}, n_cells=4, variants=2,
                                  controllers=ctrls)
-    def verdict(safety: str, findings: list[str]) -> dict:
-        return {"robustness": {"label": "undecided", "text": "", "decide": "", "row": {}},
-                "safety": {"label": safety, "text": "", "findings": findings,
-                           "threshold": 0.01}}
-
-    verdicts = {c: verdict("safe", []) for c in ctrls}
-    verdicts["HRVO"] = verdict("unsafe", ["wall and obstacle contacts in 22.5%"])
+    verdicts = {c: {"robustness": {"label": "undecided", "text": "", "row": {}},
+                    "safety": {"label": "safe", "text": "", "findings": []}} for c in ctrls}
+    verdicts["HRVO"]["safety"] = {"label": "unsafe", "text": "collides", "findings": [
+        "wall and obstacle contacts in 22.5%"]}
     table, per_pop = compare_table(runs, peds, ctrls, verdicts)
     cards = {c: tmp_path / EVALUATE_DIR / f"c{i}" / "card.html" for i, c in enumerate(ctrls)}
     study = study_from_dict(STUDY)
@@ -246,14 +243,15 @@ def test_the_card_loads_and_shows_its_safety_table(tmp_path):
     runs, peds = synthetic_study({"p1": no_effect, "p2": no_effect}, n_cells=6, variants=3)
     hit = runs.index[(runs["controller"] == "a")][::3]
     runs.loc[hit, "outcome"] = "pedestrian_collision"
-    rob = robustness_tables(runs, peds, "a", ("b", "c"), {}, ["p1", "p2"], n_boot=20)
+    rob = robustness_tables(runs, peds, "a", ("b", "c"), {}, ["p1", "p2"], n_boot=50)
     card = card_tables(runs, peds, "a", ("b", "c"), rob, rng=np.random.default_rng(0),
                        n_boot=50)
     meta = {"study": "synthetic", "part": "main", "check": "skipped", "reused": 0,
             "executed": 0, "n_runs": 36, "n_errors": 0, "n_cells": 6, "n_populations": 2,
             "backends": "orca", "mappings": "A", "replay_note": "", "n_boot": 50, "seed": 0,
-            "base_folder": "-", "seed_sets": 1, "parts": "main", "n_every": len(runs),
-            "version": "test", "config_hash": "-", "made": "-"}
+            "base_folder": "-", "seed_sets": 1, "n_used": len(runs), "safety_threshold": None,
+            "parts": "main", "n_every": len(runs), "version": "0", "config_hash": "h",
+            "made": "today"}
     with FileSet(tmp_path, "card.json") as files:
         html, _ = write_card(card, meta, files, None)
         files.commit({})
