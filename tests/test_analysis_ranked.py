@@ -1,7 +1,7 @@
 """The ranked cell metrics are declared once (analysis/ranked.py): every declared metric
-is a cell-metrics column, its resampled function with unit weights is its point value,
-docs/analysis.md shows the declaration, and adding one (the recipe of
-docs/architecture.md) is one entry that reaches the report."""
+is a cell-metrics column computed by its one function (unit weights: the point; episode
+weights: a resample), docs/analysis.md shows the declaration, and adding one (the recipe
+of docs/architecture.md) is one entry that reaches the report."""
 
 from __future__ import annotations
 
@@ -54,14 +54,34 @@ def test_every_declared_metric_is_a_cell_column_equal_to_its_reference(study):
     assert cell["worst_decile"] != pytest.approx(cell["cvar90"])  # two different statistics
 
 
-def test_a_resample_of_unit_weights_is_the_point_value(study):
+def test_the_point_is_the_declared_function_with_unit_weights(study):
     runs, _, paired = study
     cells = cell_metrics(runs, paired)
     design = build_design(runs, paired)
-    got = resampled_metrics(design, np.ones((1, design.n_columns), dtype=np.int32))
+    ones = np.ones((1, design.n_columns), dtype=np.int32)
     rows = design.rows.merge(cells, on=list(CELL_KEY), how="left")
     for m in RANKED_METRICS:
-        assert got[m.name][0] == pytest.approx(rows[m.name].to_numpy(), rel=1e-5), m.name
+        np.testing.assert_array_equal(m.compute(design, ones)[0], rows[m.name].to_numpy(),
+                                      err_msg=m.name)
+    boot = resampled_metrics(design, ones)  # the bootstrap's storage: float32
+    for m in RANKED_METRICS:
+        assert boot[m.name].dtype == np.float32
+        assert boot[m.name][0] == pytest.approx(rows[m.name].to_numpy(), rel=1e-6), m.name
+
+
+def test_blocked_share_under_episode_weights_counts_each_drawn_pedestrian():
+    """Two episodes of one cell, 4 records each: 1 and 3 blocked. Drawing the second
+    twice and the first not at all gives 6 of 8 blocked."""
+    runs, peds = synthetic_study({"p": no_effect}, n_cells=1, variants=2, n_peds=4,
+                                 controllers=("a",))
+    robot = (peds["controller"] == "a").to_numpy()
+    first = peds["episode"].str.endswith("-v1").to_numpy()
+    stuck = robot & ((first & (peds["slot"] == 0)) | (~first & (peds["slot"] > 0))).to_numpy()
+    peds = peds.assign(arrived=~stuck, travel_time=peds["travel_time"].where(~stuck))
+    design = build_design(runs, paired_delays(peds))
+    w = np.array([[1, 1], [0, 2], [2, 0]], dtype=np.int32)  # columns: v1, v2 (sorted)
+    got = resampled_metrics(design, w, ("blocked_pct",))["blocked_pct"][:, 0]
+    assert got == pytest.approx([50.0, 75.0, 25.0])
 
 
 def test_an_unknown_metric_is_named_with_the_close_ones():
@@ -77,16 +97,11 @@ def test_docs_show_the_declaration():
     assert block is not None and block.group(1) == metrics_markdown()
 
 
-#: The recipe "A ranked metric" of docs/architecture.md: one entry, its two functions.
+#: The recipe "A ranked metric" of docs/architecture.md: one entry and its function.
 MAX_DELAY = '''
 
-def max_delay_cells(p: Pooled) -> pd.Series:
-    """The largest paired delay of the cell [s]."""
-    return p.records.groupby(p.key)["delay"].max()
-
-
-def max_delay_resampled(d: Design, w: np.ndarray) -> np.ndarray:
-    """The largest record drawn at least once [s] (records are sorted largest first)."""
+def max_delay_rows(d: Design, w: np.ndarray) -> np.ndarray:
+    """The largest paired delay drawn at least once [s] (records sorted largest first)."""
     rec, out = d.records, np.full((w.shape[0], d.rows.shape[0]), np.nan)
     for r in range(out.shape[1]):
         drawn = w[:, rec.col[rec.ptr[r]:rec.ptr[r + 1]]] > 0
@@ -97,7 +112,7 @@ def max_delay_resampled(d: Design, w: np.ndarray) -> np.ndarray:
 
 RANKED_METRICS = (*RANKED_METRICS, RankedMetric(
     "max_delay", "largest delay", "Largest delay", "s", 0.02, "burden", paper=False,
-    summary=False, point=max_delay_cells, resampled=max_delay_resampled))
+    summary=False, compute=max_delay_rows))
 '''
 RECIPE = {"analysis/ranked.py": [("\nRANKED: dict[str, RankedMetric]",
                                   MAX_DELAY + "\nRANKED: dict[str, RankedMetric]")]}

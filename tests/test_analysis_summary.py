@@ -35,11 +35,11 @@ def run(controller, outcome, robot_time, clearance=np.nan, population="mixed", e
 
 
 def cell(cell_, pop, ctrl, mean_delay, *, worst=np.nan, scene="sidewalk", width=1.8,
-         done=True):
+         done=True, blocked=np.nan):
     return {"backend": "orca", "mapping": "A", "cell": cell_, "population": pop,
             "controller": ctrl, "scene": scene, "width": width, "density": 0.12,
             "robot_speed": 0.6, "mean_delay": mean_delay, "worst_decile": worst,
-            "robot_time": 20.0, "completed": done}
+            "blocked_pct": blocked, "robot_time": 20.0, "completed": done}
 
 
 def test_controller_outcomes_by_hand():
@@ -50,8 +50,8 @@ def test_controller_outcomes_by_hand():
         run("none", "none", np.nan),
     ])
     cells = pd.DataFrame([
-        cell("c1", "mixed", "reactive", 1.0, worst=4.0),
-        cell("c1", "high_caution", "reactive", 3.0, worst=8.0),
+        cell("c1", "mixed", "reactive", 1.0, worst=4.0, blocked=0.0),
+        cell("c1", "high_caution", "reactive", 3.0, worst=8.0, blocked=5.0),
         cell("c2", "mixed", "reactive", np.nan),
         cell("c1", "mixed", "robot_orca", 0.5, worst=1.0),
     ])
@@ -62,7 +62,7 @@ def test_controller_outcomes_by_hand():
               "timeout_pct"]].tolist() == [50.0, 25.0, 0.0, 25.0]
     assert r["robot_time"] == 35.0
     assert r["min_clearance"] == pytest.approx(0.7)
-    assert r["mean_delay"] == 2.0 and r["worst_decile"] == 6.0
+    assert r["mean_delay"] == 2.0 and r["worst_decile"] == 6.0 and r["blocked_pct"] == 2.5
     assert r["n_runs"] == 4 and r["n_cells"] == 2
     assert out.loc["robot_orca", "world_collision_pct"] == 100.0
     assert math.isnan(out.loc["zeta", "mean_delay"])
@@ -160,8 +160,11 @@ def test_no_robot_checks_and_stuck_flag():
 
 def test_paired_share():
     peds = pd.DataFrame([_ped("A", "reactive", k, 10.0) for k in range(4)])
-    paired = pd.DataFrame({"controller": ["reactive"] * 3})
-    assert paired_share(peds, paired)["share"].iloc[0] == 0.75
+    paired = pd.DataFrame({"controller": ["reactive"] * 3, "blocked": [False, True, False]})
+    row = paired_share(peds, paired).iloc[0]
+    # 4 records: 3 arrived without the robot, 2 of those with it too (paired), 1 blocked
+    assert row["n_paired"] == 2 and row["share"] == 0.5
+    assert row["n_blocked"] == 1 and row["blocked_share"] == pytest.approx(1 / 3)
 
 
 def rates(robot, mean, tail):

@@ -183,8 +183,9 @@ def test_worst_run_prefers_a_collision_then_the_largest_tail():
                          for e, o, t in (("e1", "success", 20.0), ("e2", "timeout", 45.0),
                                          ("e3", "pedestrian_collision", 45.0))])
     paired = pd.DataFrame([{**key, "episode": e, "delay": d}
-                           for e, d in (("e1", 9.0), ("e2", 1.0), ("e3", 0.5))])
+                           for e, d in (("e1", 9.0), ("e2", 1.0), ("e3", 0.5), ("e3", np.nan))])
     assert worst_run(runs, paired, "new")["episode"] == "e3"
+    assert worst_run(runs, paired, "new")["run_worst_decile"] == 0.5  # blocked: no delay
     ok = runs.assign(outcome="success")
     assert worst_run(ok, paired, "new")["episode"] == "e1"
     assert worst_run(ok, paired.iloc[:0], "new") is None

@@ -166,3 +166,20 @@ def test_a_design_with_one_episode_per_cell_shows_no_ranks():
     page = " ".join(render_html(card, meta(runs), "card.png", None).split())
     assert "need at least 2 episodes per cell" in page and "Rank per population" not in page
     assert "No null design to decide against" in page
+
+
+def test_a_controller_that_blocks_people_is_judged_on_blocked_pedestrians_too():
+    """Blocked pedestrians are a ranked metric like the delays: where the controller blocks
+    some (here a random 15 % of its pedestrians, in every population alike), its
+    orderings on ``blocked_pct`` get a rate, a null and a verdict in the card's family."""
+    runs, peds = swap_study(9, inject=1.5, seed=3)
+    rng = np.random.default_rng(0)
+    stuck = (peds["controller"] == "a").to_numpy() & (rng.random(len(peds)) < 0.15)
+    peds = peds.assign(arrived=~stuck, travel_time=peds["travel_time"].where(~stuck))
+    r = robustness(runs, peds)
+    raw = r.headline[r.headline["rule"] == "raw"].set_index("metric")
+    assert raw.loc["blocked_pct", "n_null"] == 9 and np.isfinite(raw.loc["blocked_pct",
+                                                                         "observed"])
+    assert raw["family"].eq(5).all()  # robot time, three delays and blocked pedestrians
+    assert raw.loc["blocked_pct", "verdict"] != "above the null"  # no population effect on it
+    assert raw.loc["mean_delay", "verdict"] == "above the null"  # the delays still decide

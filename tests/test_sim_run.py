@@ -30,6 +30,15 @@ def test_initial_states_are_identical_across_populations_controllers_and_no_robo
     assert runs[1].trajectory["robot_pose"][0, :2] == pytest.approx(spec.robot_start)
 
 
+def test_the_analysis_time_limit_is_the_simulators():
+    """The burden counts a blocked pedestrian at tables.TIME_LIMIT (the analysis may not
+    import the simulator), which must be the limit the runs stop at."""
+    from popnavshift import tables
+    from popnavshift.sim import constants
+
+    assert tables.TIME_LIMIT == constants.TIME_LIMIT
+
+
 def test_a_no_robot_run_has_zero_added_delay_against_itself():
     spec = get_episode("bottleneck-w2.4-d0.12-s0.6-v1")
     slots = assign_slots(spec, members("mixed", 40, 0.6))

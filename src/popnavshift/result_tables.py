@@ -119,7 +119,10 @@ RESULT_TABLES: tuple[ResultTable, ...] = (
                 ("population",)),
     ResultTable("paired_share", "checks",
                 "one controller's pedestrian records and the share with a paired delay",
-                ("controller",)),
+                ("controller",),
+                "n_paired: records with a paired delay (arrived with and without the robot), "
+                "share = n_paired / n_records; n_blocked: arrived without the robot but not "
+                "with it (no delay), blocked_share = n_blocked / (n_paired + n_blocked)"),
     ResultTable("findings", "summary",
                 "one qualitative finding of the paper checked on this study's point estimates",
                 ("key",), "holds; numbers: the figures it was checked on (JSON)"),
@@ -134,12 +137,19 @@ RESULT_TABLES: tuple[ResultTable, ...] = (
                 "ran one)"),
     ResultTable("cell_metrics", "table1",
                 "one controller in one population and cell of the main part: its metrics",
-                ("backend", "mapping", "cell", "population", "controller")),
+                ("backend", "mapping", "cell", "population", "controller"),
+                "mean_delay, worst_decile, cvar90 [s] over the n_paired paired delays "
+                "(pedestrians that arrived in both runs); blocked_pct [%] = 100 · n_blocked / "
+                "(n_paired + n_blocked), the pedestrians that arrived without the robot but "
+                "not with it"),
     ResultTable("noise_floor", "noise",
                 "one reversal rate between two random halves of one population",
                 ("population", "cells", "metric")),
     ResultTable("controller_outcomes", "table2", "one controller's outcomes (Table II)",
-                ("controller",)),
+                ("controller",),
+                "outcome shares [%] of its runs; robot_time [s]; mean_delay, worst_decile [s] "
+                "and blocked_pct [%]: the mean of the cell_metrics column over (cell, "
+                "population) rows"),
     ResultTable("delay_change", "change",
                 "one controller's change in delay from a reference population (Fig. 2)",
                 ("metric", "population", "reference", "controller")),

@@ -228,6 +228,11 @@ PROFILE_SET_COLUMNS: tuple[str, ...] = (
 #: what a run's population is, as columns (values: PopulationSpec.columns of the study's index)
 POPULATION_COLUMNS: tuple[str, ...] = ("population_role", "null_replicate")
 
+#: [s] the episode limit: a run ends by then, and a pedestrian still walking has not
+#: arrived. The simulator's ``sim.constants.TIME_LIMIT`` (a test ties the two; the analysis
+#: may not import the simulator).
+TIME_LIMIT = 45.0
+
 _NO_ROBOT_NAN = "no robot (controller none), or the controller raised (controller_error)"
 _RUN_COLUMNS = (
     _col("part", "str", "the first study part that plans the run; a run several parts "
@@ -262,8 +267,8 @@ _RUN_COLUMNS = (
 #: the robot's metrics: columns of ``runs`` that :func:`popnavshift.sim.metrics.robot_metrics`
 #: computes, in its order (adding a metric: declare it here, compute it there)
 ROBOT_METRICS: tuple[Column, ...] = (
-    _col("robot_time", "float", "success time, else the 45 s limit", "s", nullable=True,
-         missing="no robot (controller none)"),
+    _col("robot_time", "float", f"success time, else the {TIME_LIMIT:g} s limit", "s",
+         nullable=True, missing="no robot (controller none)"),
     _col("outcome_time", "float", "time of the outcome", "s", nullable=True,
          missing=_NO_ROBOT_NAN),
     _col("robot_path_length", "float", "robot path length until the outcome", "m",
@@ -281,9 +286,10 @@ ROBOT_METRICS: tuple[Column, ...] = (
 #: each pedestrian's metrics: columns of ``pedestrians`` that
 #: :func:`popnavshift.sim.metrics.pedestrian_metrics` computes, in its order
 PEDESTRIAN_METRICS: tuple[Column, ...] = (
-    _col("arrived", "bool", "reached its exit before the 45 s limit"),
+    _col("arrived", "bool", f"reached its exit before the {TIME_LIMIT:g} s limit"),
     _col("travel_time", "float", "time from t = 0 to crossing the exit line", "s",
-         nullable=True, missing="never arrived"),
+         nullable=True, missing="never arrived; if it arrived without the robot, the burden "
+         "counts it as blocked (docs/analysis.md §2)"),
     _col("walk_distance", "float", "path length up to the exit (or the end of the run)",
          "m"),
     _col("stop_time", "float", "time slower than 0.05 m/s before leaving", "s"),

@@ -6,13 +6,8 @@ choices the paper leaves open are in ``docs/analysis.md``.
 """
 
 from .bootstrap import bootstrap_ratio, percentile_interval, rate_intervals, resample_weights
-from .delay import (
-    cell_key,
-    cell_metrics,
-    episode_cells,
-    paired_delays,
-    worst_decile,
-)
+from .cells import cell_key, episode_cells
+from .delay import cell_metrics, paired_delays, worst_decile
 from .findings import Finding, paper_findings
 from .ranked import RANKED_METRICS, TOLERANCES, RankedMetric, tail_count
 from .reversals import (

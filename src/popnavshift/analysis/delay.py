@@ -6,6 +6,12 @@ A run is identified by (episode, population, controller, backend, mapping); the
 ``part`` column is only the first study part that planned it (shared runs are run
 once), so it is never used as a key here. Select a sub-study by filtering on
 episodes, populations, backends or mappings instead.
+
+The delays follow SPEC §7: a pedestrian's added delay exists only when it arrived in
+both runs. One that arrived without the robot but not with it is *blocked*: it keeps a
+row of the paired table (``blocked``, delay NaN) and enters the burden as the cell's
+``blocked_pct``, a ranked metric beside the delays (docs/analysis.md §2; the choice and
+the censored alternative: docs/method.md §8).
 """
 
 from __future__ import annotations
@@ -14,41 +20,13 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
-from ..tables import NO_ROBOT
-from .ranked import RANKED_METRICS, TAIL_SHARE, Pooled, tail_count
+from ..tables import NO_ROBOT, RUN_KEY
+from .cells import CELL_COLUMNS, CELL_KEY, episode_cells
+from .ranked import RANKED_METRICS, TAIL_SHARE, share_resampled, tail_count
+from .resample import build_design
 
-CELL_COLUMNS: tuple[str, ...] = ("scene", "width", "density", "robot_speed")
 #: What a no-robot baseline shares with the robot runs it is paired with (besides ``slot``).
 PAIR_KEY: tuple[str, ...] = ("episode", "population", "backend", "mapping")
-#: One comparable unit: a physical cell under one pedestrian backend and mapping.
-UNIT: tuple[str, ...] = ("backend", "mapping", "cell")
-#: Key of the cell-metrics table.
-CELL_KEY: tuple[str, ...] = (*UNIT, "population", "controller")
-
-
-def cell_key(scene: str, width: float, density: float, robot_speed: float) -> str:
-    """``"sidewalk-w1.8-d0.12-s0.6"``, the format of :class:`popnavshift.episodes.Cell`.
-
-    Floats are converted to Python floats first: ``repr(np.float64(1.8))`` is
-    ``"np.float64(1.8)"`` under numpy 2.
-    """
-    return f"{scene}-w{float(width)!r}-d{float(density)!r}-s{float(robot_speed)!r}"
-
-
-def episode_cells(runs: pd.DataFrame) -> pd.DataFrame:
-    """One row per episode: ``episode, cell, scene, width, density, robot_speed, variant``.
-
-    Raises :class:`InputError` when an episode appears with two different cells.
-    """
-    cols = ["episode", *CELL_COLUMNS, "variant"]
-    eps = runs[cols].drop_duplicates().reset_index(drop=True)
-    dup = eps["episode"].duplicated()
-    if dup.any():
-        bad = eps.loc[dup, "episode"].iloc[0]
-        raise InputError(f"runs table: episode {bad!r} has rows with different cell columns")
-    rows = list(eps[list(CELL_COLUMNS)].itertuples(index=False, name=None))
-    eps.insert(1, "cell", [cell_key(*r) for r in rows])
-    return eps
 
 
 def paired_delays(pedestrians: pd.DataFrame) -> pd.DataFrame:
@@ -61,12 +39,14 @@ def paired_delays(pedestrians: pd.DataFrame) -> pd.DataFrame:
         no-robot baselines.
 
     Returns:
-      One row per (robot run, slot) whose pedestrian arrived in *both* the robot
-      run and its baseline (same episode, population, backend, mapping, slot):
-      ``episode, population, controller, backend, mapping, slot, persona_id,
-      delay`` [s] = T(robot) − T(no robot) and ``added_distance`` [m] likewise.
-      Pedestrians without a baseline row or that did not arrive in either run are
-      left out, so the table has no NaN.
+      One row per (robot run, slot) whose pedestrian arrived in its baseline (same
+      episode, population, backend, mapping, slot): ``episode, population, controller,
+      backend, mapping, slot, persona_id``; ``blocked`` (it did not arrive with the
+      robot); ``delay`` [s] = T(robot) − T(no robot) and ``added_distance`` [m] likewise
+      from ``walk_distance``, both defined only when it arrived in both runs (SPEC §7)
+      and NaN when blocked. The rows with ``blocked`` False are the paired delays. A
+      pedestrian that did not arrive without the robot has no row, under every
+      controller alike.
 
     Raises :class:`InputError` on duplicate pedestrian rows or when a pair's
     persona ids differ (the slot assignment would be broken).
@@ -77,8 +57,9 @@ def paired_delays(pedestrians: pd.DataFrame) -> pd.DataFrame:
     if peds.duplicated([*key, "controller"]).any():
         raise InputError("pedestrians table: duplicate (run, slot) rows")
     arrived = peds["arrived"].astype(bool)
-    base = peds[(peds["controller"] == NO_ROBOT) & arrived].drop(columns=["controller", "arrived"])
-    robot = peds[(peds["controller"] != NO_ROBOT) & arrived].drop(columns="arrived")
+    is_base = peds["controller"] == NO_ROBOT
+    base = peds[is_base & arrived].drop(columns=["controller", "arrived"])
+    robot = peds[~is_base].assign(blocked=~arrived[~is_base]).drop(columns="arrived")
     both = robot.merge(base, on=key, how="inner", suffixes=("", "_base"))
     wrong = both["persona_id"] != both["persona_id_base"]
     if wrong.any():
@@ -89,9 +70,11 @@ def paired_delays(pedestrians: pd.DataFrame) -> pd.DataFrame:
             f"{row['controller']!r} but {row['persona_id_base']!r} without robot",
             hint="robot and no-robot runs must share the slot assignment",
         )
-    both["delay"] = both["travel_time"] - both["travel_time_base"]
-    both["added_distance"] = both["walk_distance"] - both["walk_distance_base"]
-    out = ["episode", "population", "controller", "backend", "mapping", "slot", "persona_id"]
+    ok = ~both["blocked"]
+    both["delay"] = (both["travel_time"] - both["travel_time_base"]).where(ok)
+    both["added_distance"] = (both["walk_distance"] - both["walk_distance_base"]).where(ok)
+    out = ["episode", "population", "controller", "backend", "mapping", "slot", "persona_id",
+           "blocked"]
     return both[[*out, "delay", "added_distance"]].reset_index(drop=True)
 
 
@@ -120,13 +103,10 @@ def cvar(delays: np.ndarray, share: float = TAIL_SHARE) -> float:
     return float((w * x).sum() / t)
 
 
-def _pooled(robot: pd.DataFrame, paired: pd.DataFrame, eps: pd.DataFrame) -> Pooled:
-    """The robot runs and paired delays grouped by CELL_KEY, records largest first."""
-    p = paired.merge(eps[["episode", "cell"]], on="episode", how="inner")
-    p = p.sort_values("delay", ascending=False, kind="stable")
-    g = p.groupby(list(CELL_KEY), sort=False)
-    return Pooled(robot.groupby(list(CELL_KEY)), p, g.cumcount().to_numpy(),
-                  g["delay"].transform("size").to_numpy(), list(CELL_KEY))
+def _row_sums(entries_ptr: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Σ of each row's entries of a CSR (``ptr`` (R + 1,), ``values`` (n,)): (R,) float."""
+    rows = np.repeat(np.arange(entries_ptr.size - 1), np.diff(entries_ptr))
+    return np.bincount(rows, weights=values, minlength=entries_ptr.size - 1)
 
 
 def cell_metrics(runs: pd.DataFrame, paired: pd.DataFrame) -> pd.DataFrame:
@@ -143,29 +123,38 @@ def cell_metrics(runs: pd.DataFrame, paired: pd.DataFrame) -> pd.DataFrame:
       (:data:`popnavshift.analysis.ranked.RANKED_METRICS`, e.g. ``robot_time`` [s], the
       mean over variants of the run's robot time, 45 s for failed runs);
       ``success_share`` in [0, 1]; ``completed`` (every variant run succeeded);
-      ``n_paired``; the burden metrics over the pooled paired delays (``mean_delay``,
-      ``worst_decile``, ``cvar90`` [s]); ``mean_added_distance`` [m]. The delay columns
-      are NaN and ``n_paired`` is 0 when the cell has no paired record.
+      ``n_paired`` (paired delays: pedestrians that arrived in both runs) and
+      ``n_blocked`` (arrived without the robot, not with it); the delay metrics over the
+      pooled paired delays (``mean_delay``, ``worst_decile``, ``cvar90`` [s]; NaN when
+      ``n_paired`` is 0) and ``blocked_pct`` [%] = 100 · n_blocked / (n_paired +
+      n_blocked) (NaN when both are 0); ``mean_added_distance`` [m] over the paired
+      records.
+
+    Every ranked metric and ``success_share`` is its bootstrap function
+    (:mod:`popnavshift.analysis.resample`) with unit weights: the point is a resample.
     """
-    eps = episode_cells(runs)
-    robot = runs[runs["controller"] != NO_ROBOT].merge(eps[["episode", "cell"]], on="episode")
-    if robot.duplicated([*CELL_KEY, "episode"]).any():
+    if runs[runs["controller"] != NO_ROBOT].duplicated(list(RUN_KEY)).any():
         raise InputError("runs table: duplicate run (episode, population, controller, backend, "
                          "mapping)")
-    robot = robot.assign(success=robot["outcome"] == "success")
-    pooled = _pooled(robot, paired, eps)
-    g = pooled.runs
-    out = g.agg(n_runs=("episode", "size"), success_share=("success", "mean"))
-    out["completed"] = g["success"].all()
-    records = pooled.records.groupby(pooled.key, sort=False)
-    out = out.join(records.agg(n_paired=("delay", "size"),
-                               mean_added_distance=("added_distance", "mean")), how="left")
-    out["n_paired"] = out["n_paired"].fillna(0).astype(np.int64)
+    design = build_design(runs, paired)
+    key = list(CELL_KEY)
+    ones = np.ones((1, design.n_columns), dtype=np.int32)  # the bootstrap weights' dtype
+    out = design.rows.copy()
+    out["n_runs"] = np.diff(design.times.ptr)
     for metric in RANKED_METRICS:
-        out[metric.name] = metric.point(pooled)
+        out[metric.name] = metric.compute(design, ones)[0]
+    out["success_share"] = share_resampled(design.outcomes["success_share"], ones)[0]
+    success = design.outcomes["success_share"]
+    out["completed"] = _row_sums(success.ptr, success.val) == out["n_runs"]
+    out["n_paired"] = _row_sums(design.delays.ptr, design.delays.aux).astype(np.int64)
+    out["n_blocked"] = _row_sums(design.blocked.ptr, design.blocked.val).astype(np.int64)
+    eps = episode_cells(runs)
+    dist = (paired.merge(eps[["episode", "cell"]], on="episode")
+            .groupby(key)["added_distance"].mean().rename("mean_added_distance"))
+    out = out.join(dist, on=key)
     cells = eps.drop(columns=["episode", "variant"]).drop_duplicates("cell")
-    out = out.reset_index().merge(cells, on="cell", how="left")
+    out = out.merge(cells, on="cell", how="left")
     ranked = {a: [m.name for m in RANKED_METRICS if m.aspect == a] for a in ("robot", "burden")}
     cols = [*CELL_KEY, *CELL_COLUMNS, "n_runs", *ranked["robot"], "success_share", "completed",
-            "n_paired", *ranked["burden"], "mean_added_distance"]
-    return out[cols].sort_values(list(CELL_KEY), ignore_index=True)
+            "n_paired", "n_blocked", *ranked["burden"], "mean_added_distance"]
+    return out[cols].sort_values(key, ignore_index=True)

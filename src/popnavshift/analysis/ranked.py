@@ -2,17 +2,20 @@
 
 A ranked metric is a per-cell statistic on which controllers are ranked and
 reversals counted. Each is one :class:`RankedMetric`: its name (the cell-metrics
-column), words, unit, tie tolerance, and two functions, passed rather than named
+column), words, unit, tie tolerance, and one function, passed rather than named
 (as rliable passes its aggregate functions):
 
-* ``point(pooled) -> Series``: the metric of every cell at once, from the robot runs
-  and paired delays grouped by the cell-metric key (:class:`Pooled`);
-* ``resampled(design, weights) -> (B, R) array``: the same metric under B episode
-  weight vectors (:mod:`popnavshift.analysis.resample`), evaluated in numba.
+* ``compute(design, weights) -> (B, R) array``: the metric of every cell-metric row
+  under B episode weight vectors, in numba, from the indexed robot runs and paired
+  delays (:class:`Design`, :func:`popnavshift.analysis.resample.build_design`).
 
-The cell table, the bootstrap, the verdicts, the card, the comparison page, the
-report and the tolerance table of docs/analysis.md iterate :data:`RANKED_METRICS`;
-adding a metric is one entry here and its two functions. Lower is better for all.
+The point estimate is the call with unit weights
+(:func:`popnavshift.analysis.delay.cell_metrics`) and every bootstrap resample a call
+with its multiplicities (:func:`popnavshift.analysis.resample.resampled_metrics`): one
+function, so the two cannot drift apart. The cell table, the bootstrap, the verdicts,
+the card, the comparison page, the report and the tolerance table of docs/analysis.md
+iterate :data:`RANKED_METRICS`; adding a metric is one entry here and its function.
+Lower is better for all.
 """
 
 from __future__ import annotations
@@ -47,12 +50,18 @@ class CSR:
 
 @dataclass(frozen=True)
 class Design:
-    """Rows (the cell-metric key), episodes (weight columns) and each metric's entries."""
+    """Rows (the cell-metric key), episodes (weight columns) and each metric's entries.
+
+    A record is a pedestrian of a robot run that arrived without the robot; it has a
+    paired delay when it arrived with the robot too, and is ``blocked`` otherwise
+    (:func:`popnavshift.analysis.delay.paired_delays`). The delay entries hold the paired
+    delays only (SPEC §7); ``blocked`` counts every record."""
 
     rows: pd.DataFrame  # CELL_KEY columns, one row per cell metric, sorted
     episodes: pd.DataFrame  # episode, cell, column (0 … E−1)
     times: CSR  # robot time of each run: val = robot_time
-    delays: CSR  # per (row, episode): val = Σ delay, aux = count
+    delays: CSR  # per (row, episode): val = Σ paired delay, aux = count of paired delays
+    blocked: CSR  # per (row, episode): val = blocked records, aux = all records
     records: CSR  # every paired delay, largest first within a row
     outcomes: dict[str, CSR]  # per run, 1.0 when the run ended in the outcome
 
@@ -62,24 +71,15 @@ class Design:
 
 
 @dataclass(frozen=True)
-class Pooled:
-    """A study's robot runs and paired delays, grouped by the cell-metric key."""
-
-    runs: pd.core.groupby.DataFrameGroupBy  # robot runs by ``key``
-    records: pd.DataFrame  # paired delays (``delay`` [s]), largest first
-    rank: np.ndarray  # (n,) each record's 0-based rank in its key, largest first
-    count: np.ndarray  # (n,) the number of records in each record's key
-    key: list[str]
-
-
-@dataclass(frozen=True)
 class RankedMetric:
     """One ranked cell metric. ``aspect``: ``robot`` (from the robot's runs) or
-    ``burden`` (from the paired pedestrian delays). ``label`` is the metric in words,
+    ``burden`` (from the paired pedestrian records). ``label`` is the metric in words,
     ``title`` its heading in the report's tables and figures. ``paper``: one of the
     paper's three (Table I). ``summary``: shown where one figure per aspect summarises
     (the comparison page's ranks, burden beyond robot time); the worst decile is not,
-    as it rests on 1–3 records per cell."""
+    as it rests on 1–3 records per cell. ``compute(design, weights)``: (B, E) episode
+    weights → (B, R) float64, the metric of each design row under each weight vector (NaN
+    where a row has nothing to average); unit weights give the point estimate."""
 
     name: str
     label: str
@@ -89,8 +89,7 @@ class RankedMetric:
     aspect: Literal["robot", "burden"]
     paper: bool
     summary: bool
-    point: Callable[[Pooled], pd.Series]
-    resampled: Callable[[Design, np.ndarray], np.ndarray]
+    compute: Callable[[Design, np.ndarray], np.ndarray]
 
     @property
     def axis_label(self) -> str:
@@ -101,7 +100,7 @@ class RankedMetric:
 @numba.njit(cache=True)
 def _ratio(w, ptr, col, num, den, use_den):  # pragma: no cover - numba
     n_b, n_r = w.shape[0], ptr.size - 1
-    out = np.full((n_b, n_r), np.nan, dtype=np.float32)
+    out = np.full((n_b, n_r), np.nan)
     for r in range(n_r):
         for b in range(n_b):
             s = 0.0
@@ -116,10 +115,10 @@ def _ratio(w, ptr, col, num, den, use_den):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True)
-def _tail(w, cnt_ptr, cnt_col, cnt_n, rec_ptr, rec_col, rec_val, share, fractional):
+def _tail_kernel(w, cnt_ptr, cnt_col, cnt_n, rec_ptr, rec_col, rec_val, share, fractional):
     # pragma: no cover - numba
     n_b, n_r = w.shape[0], rec_ptr.size - 1
-    out = np.full((n_b, n_r), np.nan, dtype=np.float32)
+    out = np.full((n_b, n_r), np.nan)
     for r in range(n_r):
         for b in range(n_b):
             n = 0.0
@@ -147,72 +146,59 @@ def share_resampled(c: CSR, w: np.ndarray) -> np.ndarray:
     return _ratio(w, c.ptr, c.col, c.val, c.val, False)
 
 
-def robot_time_cells(p: Pooled) -> pd.Series:
-    """Mean robot time of the cell's runs [s] (45 s for a failed run)."""
-    return p.runs["robot_time"].mean()
-
-
-def robot_time_resampled(d: Design, w: np.ndarray) -> np.ndarray:
-    """Σ_e w_e t_e / Σ_e w_e over the row's runs [s]."""
+def robot_time_rows(d: Design, w: np.ndarray) -> np.ndarray:
+    """Mean robot time of the row's runs, Σ_e w_e t_e / Σ_e w_e [s] (45 s for a failed run)."""
     return share_resampled(d.times, w)
 
 
-def mean_delay_cells(p: Pooled) -> pd.Series:
-    """Mean of the cell's pooled paired delays [s]; absent (NaN) without a record."""
-    return p.records.groupby(p.key, sort=False)["delay"].mean()
-
-
-def mean_delay_resampled(d: Design, w: np.ndarray) -> np.ndarray:
-    """Σ_e w_e S_e / Σ_e w_e n_e, S_e and n_e the episode's delay sum and count [s]."""
+def mean_delay_rows(d: Design, w: np.ndarray) -> np.ndarray:
+    """Mean of the row's paired delays, Σ_e w_e S_e / Σ_e w_e n_e, S_e and n_e the delay sum
+    and count of episode e [s]; NaN without a record."""
     return _ratio(w, d.delays.ptr, d.delays.col, d.delays.val, d.delays.aux, True)
 
 
-def worst_decile_cells(p: Pooled) -> pd.Series:
-    """Mean of the largest ⌈0.1 n⌉ of the cell's n paired delays [s] (the paper's)."""
-    return p.records[p.rank < tail_count(p.count)].groupby(p.key)["delay"].mean()
+def _tail(d: Design, w: np.ndarray, fractional: bool) -> np.ndarray:
+    return _tail_kernel(w, d.delays.ptr, d.delays.col, d.delays.aux, d.records.ptr,
+                        d.records.col, d.records.val, TAIL_SHARE, fractional)
 
 
-def _tail_resampled(d: Design, w: np.ndarray, fractional: bool) -> np.ndarray:
-    return _tail(w, d.delays.ptr, d.delays.col, d.delays.aux, d.records.ptr, d.records.col,
-                 d.records.val, TAIL_SHARE, fractional)
+def worst_decile_rows(d: Design, w: np.ndarray) -> np.ndarray:
+    """Mean of the largest ⌈N/10⌉ of N = Σ_e w_e n_e records, each counted w_e times [s]
+    (the paper's; with unit weights :func:`popnavshift.analysis.delay.worst_decile`)."""
+    return _tail(d, w, False)
 
 
-def worst_decile_resampled(d: Design, w: np.ndarray) -> np.ndarray:
-    """Mean of the largest ⌈N/10⌉ records, N = Σ_e w_e n_e, each counted w_e times [s]."""
-    return _tail_resampled(d, w, False)
+def cvar90_rows(d: Design, w: np.ndarray) -> np.ndarray:
+    """CVaR at 90 %: the mean of the upper tenth of N = Σ_e w_e n_e records, t = max(0.1 N, 1)
+    of them, the boundary one counted fractionally [s] (with unit weights
+    :func:`popnavshift.analysis.delay.cvar`)."""
+    return _tail(d, w, True)
 
 
-def cvar90_cells(p: Pooled) -> pd.Series:
-    """CVaR at 90 % of the cell's paired delays [s]: t = max(0.1 n, 1) records, the
-    boundary one counted fractionally (:func:`popnavshift.analysis.delay.cvar`)."""
-    t = np.maximum(TAIL_SHARE * p.count, 1.0)
-    weight = np.clip(t - p.rank, 0.0, 1.0)
-    wx = p.records.assign(_wx=weight * p.records["delay"].to_numpy() / t)
-    return wx.groupby(p.key)["_wx"].sum()
-
-
-def cvar90_resampled(d: Design, w: np.ndarray) -> np.ndarray:
-    """The upper tenth of N = Σ_e w_e n_e records, the boundary one fractionally [s]."""
-    return _tail_resampled(d, w, True)
+def blocked_pct_rows(d: Design, w: np.ndarray) -> np.ndarray:
+    """Pedestrians blocked: 100 · Σ_e w_e k_e / Σ_e w_e n_e [%], k_e of the n_e records of
+    episode e (pedestrians that arrived without the robot) not arrived with it; NaN
+    without a record."""
+    return 100.0 * _ratio(w, d.blocked.ptr, d.blocked.col, d.blocked.val, d.blocked.aux, True)
 
 
 RANKED_METRICS: tuple[RankedMetric, ...] = (
     RankedMetric("robot_time", "robot time", "Robot travel time", "s", 0.05, "robot",
-                 paper=True, summary=True, point=robot_time_cells,
-                 resampled=robot_time_resampled),
+                 paper=True, summary=True, compute=robot_time_rows),
     RankedMetric("mean_delay", "mean delay", "Mean pedestrian delay", "s", 0.02, "burden",
-                 paper=True, summary=True, point=mean_delay_cells,
-                 resampled=mean_delay_resampled),
+                 paper=True, summary=True, compute=mean_delay_rows),
     RankedMetric("worst_decile", "worst-decile delay", "Worst-decile delay", "s", 0.02,
-                 "burden", paper=True, summary=False, point=worst_decile_cells,
-                 resampled=worst_decile_resampled),
+                 "burden", paper=True, summary=False, compute=worst_decile_rows),
     RankedMetric("cvar90", "CVaR-90 delay", "CVaR-90 delay", "s", 0.02, "burden",
-                 paper=False, summary=True, point=cvar90_cells, resampled=cvar90_resampled),
+                 paper=False, summary=True, compute=cvar90_rows),
+    # a share of whole pedestrians: any difference is one pedestrian or more (tolerance 0)
+    RankedMetric("blocked_pct", "blocked pedestrians", "Pedestrians blocked", "%", 0.0,
+                 "burden", paper=False, summary=False, compute=blocked_pct_rows),
 )
 RANKED: dict[str, RankedMetric] = {m.name: m for m in RANKED_METRICS}
 #: every ranked metric's name, in declaration order
 RANKED_NAMES: tuple[str, ...] = tuple(RANKED)
-#: tie tolerance per ranked metric [s]
+#: tie tolerance per ranked metric [its unit]
 TOLERANCES: dict[str, float] = {m.name: m.tolerance for m in RANKED_METRICS}
 
 

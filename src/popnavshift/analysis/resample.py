@@ -8,16 +8,16 @@ mapping of the cell: a resample is a vector of episode multiplicities
 (``episode_weights``), and every comparison computed from one resample is paired
 (same episodes under every controller and population).
 
-``Design`` indexes a runs table and its paired delays once (per cell-metric row:
-its runs, its per-episode delay sums and its delay records sorted from the
-largest); ``resampled_metrics`` then evaluates every cell metric under B weight
-vectors in numba, without rebuilding tables: each ranked metric by its declared
-``resampled`` function (:mod:`popnavshift.analysis.ranked`, where each says its
-formula), and ``<outcome>_share``: Σ_e w_e [outcome] / Σ_e w_e, e.g.
+``Design`` indexes a runs table and its paired delays once (per cell-metric row: its
+runs, its per-episode delay sums, its per-episode blocked and record counts, and its
+delay records sorted from the largest); ``resampled_metrics`` then evaluates every cell
+metric under B weight vectors in numba, without rebuilding tables: each ranked metric by
+its declared ``compute`` function (:mod:`popnavshift.analysis.ranked`, where each
+says its formula), and ``<outcome>_share``: Σ_e w_e [outcome] / Σ_e w_e, e.g.
 ``success_share`` in [0, 1].
 
-With all weights 1 each equals the cell metric of
-:func:`popnavshift.analysis.delay.cell_metrics` (up to the order of float sums).
+The same functions with all weights 1 are the cell metrics of
+:func:`popnavshift.analysis.delay.cell_metrics`: the point estimate is a resample.
 A weight column is an episode.
 """
 
@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from ..tables import NO_ROBOT
-from .delay import CELL_KEY, episode_cells
+from .cells import CELL_KEY, episode_cells
 from .ranked import CSR, RANKED, RANKED_NAMES, Design, share_resampled
 
 #: Run outcomes whose share per cell the bootstrap can recompute (``<outcome>_share``).
@@ -69,14 +69,23 @@ def build_design(runs: pd.DataFrame, paired: pd.DataFrame) -> Design:
     p = paired.merge(eps[["episode", "cell"]], on="episode")
     p_row, p_col = row_of(p), p["episode"].map(col_of).to_numpy()
     keep = p_row >= 0
-    p_row, p_col, d = p_row[keep], p_col[keep], p["delay"].to_numpy(float)[keep]
+    p_row, p_col = p_row[keep], p_col[keep]
+    is_blocked = p["blocked"].to_numpy(bool)[keep]
+    # blocked: every record (arrived without the robot); val = blocked, aux = records
+    per = pd.DataFrame({"row": p_row, "col": p_col, "k": is_blocked.astype(float)}).groupby(
+        ["row", "col"], sort=True)["k"].agg(["sum", "size"]).reset_index()
+    blocked = _csr(per["row"].to_numpy(), per["col"].to_numpy(), per["sum"].to_numpy(),
+                   len(rows), per["size"].to_numpy(float))
+    # delays: the paired delays only (arrived in both runs, SPEC §7)
+    ok = ~is_blocked
+    p_row, p_col, d = p_row[ok], p_col[ok], p["delay"].to_numpy(float)[keep][ok]
     by = pd.DataFrame({"row": p_row, "col": p_col, "d": d}).groupby(["row", "col"], sort=True)
     sums = by["d"].agg(["sum", "size"]).reset_index()
     delays = _csr(sums["row"].to_numpy(), sums["col"].to_numpy(), sums["sum"].to_numpy(),
                   len(rows), sums["size"].to_numpy(float))
     order = np.lexsort((-d, p_row))  # by row, then largest delay first
     records = _csr(p_row[order], p_col[order], d[order], len(rows))
-    return Design(rows, eps, times, delays, records, outcomes)
+    return Design(rows, eps, times, delays, blocked, records, outcomes)
 
 
 def episode_weights(design: Design, n_boot: int, rng: np.random.Generator) -> np.ndarray:
@@ -94,20 +103,21 @@ def episode_weights(design: Design, n_boot: int, rng: np.random.Generator) -> np
 
 def resampled_metrics(design: Design, weights: np.ndarray,
                       metrics: tuple[str, ...] = RANKED_NAMES) -> dict[str, np.ndarray]:
-    """Each metric of ``metrics`` per resample and row: (B, R) float64 [s].
+    """Each metric of ``metrics`` per resample and row: (B, R) float32 (its unit).
 
     ``metrics`` are ranked metrics (:data:`popnavshift.analysis.ranked.RANKED_METRICS`,
-    by their ``resampled`` function) or ``<outcome>_share`` columns. ``weights`` is
-    (B, E) (:func:`episode_weights`, or ones for the point estimate); NaN where a row
-    has no run or no paired delay under a resample.
+    by their ``compute`` function) or ``<outcome>_share`` columns. ``weights`` is
+    (B, E) (:func:`episode_weights`); NaN where a row has no run or no paired delay
+    under a resample. Stored in float32 to halve the memory of B × R values; the
+    point estimate (:func:`popnavshift.analysis.delay.cell_metrics`) keeps float64.
     """
     w = np.ascontiguousarray(weights)
     out: dict[str, np.ndarray] = {}
     for m in metrics:
         if m in RANKED:
-            out[m] = RANKED[m].resampled(design, w)
+            out[m] = RANKED[m].compute(design, w).astype(np.float32)
         elif m in design.outcomes:
-            out[m] = share_resampled(design.outcomes[m], w)
+            out[m] = share_resampled(design.outcomes[m], w).astype(np.float32)
         else:
             raise KeyError(m)
     return out

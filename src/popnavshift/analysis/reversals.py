@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError, UnknownNameError
-from .delay import UNIT
+from .cells import UNIT
 from .ranked import TOLERANCES, names
 
 #: The paper's three ranked metrics (Table I); each one's tie tolerance is declared with it.

@@ -40,7 +40,7 @@ import numpy as np
 import pandas as pd
 from scipy import optimize, stats
 
-from .delay import CELL_KEY, UNIT
+from .cells import CELL_KEY, UNIT
 from .ranked import TOLERANCES, Design
 from .reversals import tie_sign
 

@@ -21,7 +21,8 @@ from ..paper import PAPER_CONTROLLERS
 from ..populations.identity import MATCHED_PAIR
 from ..tables import NO_ROBOT
 from .bootstrap import LEVEL, N_BOOT, rate_intervals
-from .delay import UNIT, cell_metrics, paired_delays
+from .cells import UNIT
+from .delay import cell_metrics, paired_delays
 from .ranked import TOLERANCES
 from .reversals import (
     METRICS,
@@ -89,10 +90,12 @@ def controller_outcomes(runs: pd.DataFrame, cells: pd.DataFrame) -> pd.DataFrame
     Outcome shares (``*_pct``, % of robot runs); ``robot_time`` [s], mean over
     runs with 45 s for failures; ``min_clearance`` [m], mean over runs of the
     robot's minimum pedestrian clearance (runs without one ignored);
-    ``mean_delay`` and ``worst_decile`` [s], the mean over (cell, population)
-    rows of the cell statistics (rows without a paired record ignored), so each
-    cell and population weighs the same, as in the reversal analysis; ``n_runs``
-    and ``n_cells`` (rows with a mean delay).
+    ``mean_delay`` and ``worst_decile`` [s] (paired delays: pedestrians that arrived in
+    both runs) and ``blocked_pct`` [%] (of those that arrived without the robot, the share
+    that did not arrive with it), the mean over (cell, population) rows of the cell
+    statistics (rows without a paired record ignored), so each cell and population
+    weighs the same, as in the reversal analysis; ``n_runs`` and ``n_cells`` (rows with a
+    mean delay).
     """
     robot = runs[runs["controller"] != NO_ROBOT]
     shares = pd.crosstab(robot["controller"], robot["outcome"], normalize="index") * 100.0
@@ -104,6 +107,7 @@ def controller_outcomes(runs: pd.DataFrame, cells: pd.DataFrame) -> pd.DataFrame
     c = cells.groupby("controller")
     out["mean_delay"] = c["mean_delay"].mean()
     out["worst_decile"] = c["worst_decile"].mean()
+    out["blocked_pct"] = c["blocked_pct"].mean()
     out["n_runs"] = g.size()
     out["n_cells"] = c["mean_delay"].count()
     return out.reindex(controller_order(out.index)).rename_axis("controller")
@@ -244,8 +248,18 @@ def no_robot_checks(
 
 def paired_share(pedestrians: pd.DataFrame, paired: pd.DataFrame,
                  by: Sequence[str] = ("controller",)) -> pd.DataFrame:
-    """Share of robot-run pedestrian records with a paired delay, per group, in [0, 1]."""
+    """Per group, the robot-run pedestrian records and how the burden counts them.
+
+    Columns: ``n_records``; ``n_paired``, those with a paired delay (arrived in both runs),
+    and ``share`` = n_paired / n_records in [0, 1]; ``n_blocked``, those that arrived
+    without the robot but not with it, and ``blocked_share`` = n_blocked / (n_paired +
+    n_blocked) in [0, 1], pooled over the group's records. ``paired`` is
+    :func:`popnavshift.analysis.delay.paired_delays` (a ``blocked`` row has no delay).
+    """
     robot = pedestrians[pedestrians["controller"] != NO_ROBOT]
     n = robot.groupby(list(by)).size()
-    k = paired.groupby(list(by)).size().reindex(n.index, fill_value=0)
-    return pd.DataFrame({"n_records": n, "n_paired": k, "share": k / n}).reset_index()
+    b = paired.groupby(list(by))["blocked"].sum().reindex(n.index, fill_value=0)
+    k = paired[~paired["blocked"]].groupby(list(by)).size().reindex(n.index, fill_value=0)
+    b, k = b.astype(np.int64), k.astype(np.int64)
+    return pd.DataFrame({"n_records": n, "n_paired": k, "share": k / n, "n_blocked": b,
+                         "blocked_share": b / (k + b).where(k + b > 0)}).reset_index()

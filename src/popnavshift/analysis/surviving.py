@@ -21,7 +21,8 @@ import pandas as pd
 
 from ..populations.identity import MATCHED_PAIR
 from ..tables import NO_ROBOT
-from .delay import CELL_KEY, cell_metrics, episode_cells, paired_delays
+from .cells import CELL_KEY, episode_cells
+from .delay import cell_metrics, paired_delays
 from .findings import CLAIM_BY_KEY, CLAIMS, WIDTH_SCENES, controller_needs
 from .nulls import centred_interval
 from .resample import build_design, episode_weights, resampled_metrics

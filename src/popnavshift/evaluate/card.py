@@ -38,7 +38,7 @@ from ..analysis import (
     paired_delays,
     worst_decile,
 )
-from ..analysis.delay import UNIT
+from ..analysis.cells import UNIT
 from ..tables import RUN_KEY
 from .robustness import Robustness
 from .safety import (
@@ -173,7 +173,8 @@ def worst_run(runs: pd.DataFrame, paired: pd.DataFrame, controller: str) -> dict
     collision before timeout, then the larger worst-decile delay), else the run
     with the largest worst-decile delay [s]; None when neither exists."""
     own = runs[runs["controller"] == controller]
-    tails = (paired[paired["controller"] == controller].groupby(list(RUN_KEY))["delay"]
+    mine = paired[(paired["controller"] == controller) & paired["delay"].notna()]  # not blocked
+    tails = (mine.groupby(list(RUN_KEY))["delay"]
              .agg(worst_decile).rename("run_worst_decile").reset_index())
     own = own.merge(tails, on=list(RUN_KEY), how="left")
     failed = own[own["outcome"].isin(FAILURE_ORDER)]

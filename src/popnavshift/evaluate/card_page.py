@@ -330,13 +330,14 @@ style="max-width:100%">{% endif %}
 <h2>Outcomes (main part)</h2><div class="wrap"><table><tr><th>controller</th><th>success %</th>
 <th>ped. coll. % (robot moving)</th><th>standing contacts %</th><th>world coll. %</th>
 <th>timeout %</th><th>ctrl error %</th><th>robot time [s]</th><th>mean delay [s]</th>
-<th>worst decile [s]</th><th>min. clearance [m]</th><th>path [m]</th><th>stop time [s]</th>
-<th>runs</th></tr>
+<th>worst decile [s]</th><th>blocked %</th><th>min. clearance [m]</th><th>path [m]</th>
+<th>stop time [s]</th><th>runs</th></tr>
 {% for o in outcomes %}<tr><td class="l">{{ o.controller }}</td><td>{{ o.success_pct | f(1) }}</td>
 <td>{{ o.pedestrian_collision_pct | f(1) }}</td><td>{{ o.standing_contact_pct | f(1) }}</td>
 <td>{{ o.world_collision_pct | f(1) }}</td><td>{{ o.timeout_pct | f(1) }}</td>
 <td>{{ o.controller_error_pct | f(1) }}</td><td>{{ o.robot_time | f }}</td>
-<td>{{ o.mean_delay | f }}</td><td>{{ o.worst_decile | f }}</td><td>{{ o.min_clearance | f }}</td>
+<td>{{ o.mean_delay | f }}</td><td>{{ o.worst_decile | f }}</td><td>{{ o.blocked_pct | f }}</td>
+<td>{{ o.min_clearance | f }}</td>
 <td>{{ o.path_length | f(1) }}</td><td>{{ o.stop_time | f(1) }}</td><td>{{ o.n_runs }}</td></tr>
 {% endfor %}</table></div>
 {% if failed %}<p class="warn">It reached the goal in none of its runs: no ranking or win

@@ -106,7 +106,8 @@ SHORT_DROPS = frozenset({
     _SHARES["timeout"], _SHARES["controller_error"], _SHARES["standing_contact"],
     METRIC_LABELS["cvar90"], _MEANS["path_length"], _MEANS["stop_time"],
     "rank " + METRIC_LABELS["robot_time"].split(" [")[0],
-    "rank " + METRIC_LABELS["cvar90"].split(" [")[0]})
+    "rank " + METRIC_LABELS["cvar90"].split(" [")[0],
+    "rank " + METRIC_LABELS["blocked_pct"].split(" [")[0]})
 
 
 def caption(comparison: Comparison) -> str:
@@ -118,22 +119,27 @@ def caption(comparison: Comparison) -> str:
             f"orderings against {', '.join(st.get('baselines', []))} beyond its own null "
             "runs (excess in pp, simultaneous 95% interval); safety: a counted failure above "
             f"{100 * st.get('safety_threshold', 0):g}% of its runs with 95% confidence; shares "
-            "in % of runs, metrics in s or m; rank among the compared (best-worst over "
+            "in % of runs, metrics in s or m, blocked pedestrians in % of those that "
+            "arrived without the robot; rank among the compared (best-worst over "
             "populations).")
 
 
 def compare_figure(comparison: Comparison):
-    """Four panels, one per compared metric: its mean per population, each controller in
-    its own style (the same as on every card). A matplotlib Figure."""
+    """One panel per compared metric, two per row: its mean per population, each controller
+    in its own style (the same as on every card). A matplotlib Figure."""
     import matplotlib  # lazy: slow to import
 
     matplotlib.use("Agg")
     matplotlib.rcParams["text.parse_math"] = False  # a label is data: "$" is no math
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(2, 2, figsize=(12, 8), constrained_layout=True)
-    for ax, metric in zip(axes.flat, COMPARE_METRICS, strict=True):
+    n_rows = -(-len(COMPARE_METRICS) // 2)
+    fig, axes = plt.subplots(n_rows, 2, figsize=(12, 4 * n_rows), constrained_layout=True,
+                             squeeze=False)
+    for ax, metric in zip(axes.flat, COMPARE_METRICS, strict=False):
         population_panel(ax, comparison.per_population, metric, comparison.controllers)
+    for ax in axes.flat[len(COMPARE_METRICS):]:
+        ax.set_axis_off()
     handles, labels = axes.flat[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside lower center", ncol=min(6, len(labels)),
                fontsize=9)  # outside the panels: it never hides a point

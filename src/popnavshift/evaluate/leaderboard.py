@@ -35,10 +35,13 @@ NOT_CONTROLLERS: dict[str, str] = {
 
 def navground_controllers() -> list[str]:
     """Every behaviour type registered in navground now (plug-ins that register a type
-    included), but :data:`NOT_CONTROLLERS`, sorted."""
+    included), but :data:`NOT_CONTROLLERS` and the types behind our own controllers
+    (registered once their module is imported; they are rows as ``reactive`` and
+    ``early_yield``), sorted."""
+    from ..sim.controllers.builtin import OWN_BEHAVIORS
     from ..sim.controllers.navground_type import navground_types
 
-    return [t for t in navground_types() if t not in NOT_CONTROLLERS]
+    return [t for t in navground_types() if t not in NOT_CONTROLLERS and t not in OWN_BEHAVIORS]
 
 
 def leaderboard_controllers(study: Study, extra: Sequence[str] = ()) -> tuple[str, ...]:

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..analysis.ranked import names
+from ..analysis.ranked import names, ranked_metric
 from ..analysis.reversals import COMPARISONS
 from ..analysis.verdicts import ABOVE, BELOW, CLAIMS, SMALL
 from ..populations.build import population_order
@@ -170,7 +170,8 @@ def _ranks(p: Page, ranks: pd.DataFrame) -> list[Block]:
                 x = x.iloc[0]
                 span = (f"{x['rank']}" if x["rank_low"] == x["rank_high"]
                         else f"{x['rank']} [{x['rank_low']}–{x['rank_high']}]")
-                row.append(f"{span} · {fmt(x['value'])} s · P(first) {pct(x['p_first'])}")
+                unit = ranked_metric(metric).unit
+                row.append(f"{span} · {fmt(x['value'])} {unit} · P(first) {pct(x['p_first'])}")
             rows.append(row)
         out.append(table(["Population", *[controller_label(c) for c in ctrls]], rows,
                          caption=f"{LABELS[metric]}: rank [interval] · grid mean · P(first)",

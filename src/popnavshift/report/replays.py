@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..analysis.delay import episode_cells
+from ..analysis.cells import episode_cells
 from ..analysis.study import Analysis
 from ..errors import PopNavShiftError
 from ..read.folder import StudyFolder, stored_pedestrians

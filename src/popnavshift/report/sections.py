@@ -22,6 +22,7 @@ from ..analysis.verdicts import ABOVE
 from ..paper import CONTROLLERS
 from ..populations.build import population_order
 from ..populations.identity import MATCHED_PAIR
+from ..tables import TIME_LIMIT
 from ..viz.style import controller_label
 from .blocks import Block, Cell, Page, SectionSpec, fmt, para, pct, table
 from .figures import METRIC_LABELS, change_rows, pop_label, tau_matrix
@@ -36,6 +37,7 @@ OUTCOME_ROWS = (  # Table II rows: column of controller_outcomes, label, number 
     ("min_clearance", "Minimum clearance (m)", "{:.2f}"),
     ("mean_delay", "Mean added delay (s)", "{:.2f}"),
     ("worst_decile", "Worst-decile delay (s)", "{:.2f}"),
+    ("blocked_pct", "Pedestrians blocked (%)", "{:.2f}"),
 )
 WORDS = {"success_pct": "success rate", "timeout_pct": "timeout rate", "mean_delay": "mean delay",
          "worst_decile": "worst-decile delay", "robot_time": "robot travel time",
@@ -205,8 +207,11 @@ def _outcomes(p: Page, t: pd.DataFrame) -> list[Block]:
         OUTCOME_ROWS if col in t.columns]
     rows.append(["Robot runs"] + [x for c in ctrls for x in (int(t.at[c, "n_runs"]), "")])
     return [table(cols, rows, csv="controller_outcomes", groups=groups),
-            para("Delays are the mean over (cell, population) rows of each cell's "
-                 "statistic; robot time counts 45 s for failed runs.")]
+            para("Delays and the blocked share are the mean over (cell, population) rows of "
+                 "each cell's statistic. A delay is paired: the pedestrian arrived with and "
+                 "without the robot. One that arrived without the robot but not with it is "
+                 "blocked: it has no delay and counts in the blocked share. Robot time counts "
+                 f"{TIME_LIMIT:g} s for failed runs.")]
 
 
 OUTCOMES = SectionSpec("table2", "Controller outcomes (paper Table II, §V-C)", _outcomes,

@@ -83,10 +83,15 @@ def _checks(p: Page, _: pd.DataFrame) -> list[Block]:
             csv="no_robot_checks"))
     share = p.a.tables.get("paired_share")
     if share is not None:
-        out.append(table(["Controller", "Pedestrian records", "With a paired delay", "Share"],
+        out.append(table(["Controller", "Pedestrian records", "With a paired delay", "Share",
+                          "Blocked", "Blocked share"],
                          [[controller_label(r.controller), r.n_records, r.n_paired,
-                           pct(r.share)] for r in share.itertuples(index=False)],
-                         caption="Paired delay availability (the paper: nearly all)",
+                           pct(r.share), r.n_blocked, pct(r.blocked_share)]
+                          for r in share.itertuples(index=False)],
+                         caption="Paired delays: a pedestrian that arrived with and without "
+                                 "the robot has one; blocked = it arrived without the robot "
+                                 "but not with it (no delay; share of those that arrived "
+                                 "without the robot)",
                          csv="paired_share"))
     return out
 
