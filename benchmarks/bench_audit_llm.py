@@ -105,7 +105,7 @@ def build_folder(folder: Path, args: argparse.Namespace, respondent: list[str]) 
 def audit_figures(folder: Path) -> dict:
     """The audit's headline figures, from the same tables the command prints."""
     from popnavshift.analysis.audit_verdict import audit_tables
-    from popnavshift.engine.respondent_tables import read_respondent_tables
+    from popnavshift.read.respondent_tables import read_respondent_tables
 
     personas, respondents = read_respondent_tables(folder)
     t = audit_tables(personas, respondents, rng_seed=0, n_perm=999, n_boot=1000)

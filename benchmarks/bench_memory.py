@@ -37,7 +37,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from popnavshift.engine.plan import Run
+from popnavshift.design.plan import Run
 from popnavshift.episodes.specs import seed_set_id
 from popnavshift.tables import RUN_KEY
 

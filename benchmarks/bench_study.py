@@ -42,8 +42,8 @@ from typing import Any
 
 import pandas as pd
 
+from popnavshift.design.study import load_study, study_from_dict
 from popnavshift.engine.runner import population_settings, run_stages, run_study
-from popnavshift.engine.study import load_study, study_from_dict
 from popnavshift.tables import RUN_KEY
 
 TABLES = ("runs", "pedestrians")

@@ -49,3 +49,23 @@ def tiny_study(folder: Path, *, source="synthetic", n=60, respondent="", control
     path.write_text(TINY.format(source=source, n=n, respondent=respondent, controller=controller,
                                 backend=backend, mapping=mapping, episodes=episodes))
     return path
+
+
+def study_copy(src: Path, dst: Path) -> Path:
+    """A copy of the study folder ``src`` (and its study file ``../tiny.yaml``) at ``dst``."""
+    import shutil
+
+    shutil.copytree(src, dst)
+    if (src.parent / "tiny.yaml").exists():
+        shutil.copy(src.parent / "tiny.yaml", dst.parent / "tiny.yaml")
+    return dst
+
+
+def table_hashes(folder: Path) -> dict[str, str]:
+    """sha256 of each of a study folder's own tables and JSON files (not its outputs): what
+    no command reading or evaluating the study may change."""
+    import hashlib
+
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(folder.glob("*")) if p.suffix in (".parquet", ".json")
+            and p.name != "study.json"}

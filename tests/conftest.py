@@ -48,3 +48,36 @@ def reported_study(tmp_path_factory) -> Path:
     from report_study import run_and_report
 
     return run_and_report(tmp_path_factory.mktemp("reported"))
+
+
+@pytest.fixture(scope="session")
+def carded(finished, tmp_path_factory) -> Path:
+    """The finished tiny study with the robustness card of `reactive` (20 resamples),
+    evaluated once; its study file is ``../tiny.yaml``. Tests copy it before changing it."""
+    import shutil
+
+    from popnavshift.design.study import load_study
+    from popnavshift.engine.ownership import claim_folder
+    from popnavshift.evaluate import evaluate, make_card
+
+    root = tmp_path_factory.mktemp("carded")
+    folder = root / "s"
+    shutil.copytree(finished, folder)
+    study = load_study(str(tiny_study(root)))
+    claim_folder(folder, study, force=None)
+    make_card(evaluate("reactive", study, folder, workers=1, show_progress=False), n_boot=20)
+    return folder
+
+
+@pytest.fixture(scope="session")
+def reported_tiny(finished, tmp_path_factory) -> Path:
+    """A copy of the finished tiny study with the report `popnavshift run` writes (and
+    finds current); tests copy it before changing it."""
+    from cli_helpers import study_copy
+    from popnavshift.report.build import build_report, report_is_current
+
+    folder = study_copy(finished, tmp_path_factory.mktemp("reported_tiny") / "s")
+    run = {"rng_seed": 0, "n_boot": 1000, "replays": 2}
+    build_report(folder, **run)
+    assert report_is_current(folder, run) == ""
+    return folder

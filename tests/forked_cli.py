@@ -15,8 +15,8 @@ import traceback
 from pathlib import Path
 
 import popnavshift.cli  # noqa: F401  (imported once, before any fork)
-import popnavshift.engine.plan  # noqa: F401
-import popnavshift.engine.study  # noqa: F401
+import popnavshift.design.plan  # noqa: F401
+import popnavshift.design.study  # noqa: F401
 import popnavshift.engine.validate  # noqa: F401
 from popnavshift.episodes.specs import all_episodes
 

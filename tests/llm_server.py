@@ -9,7 +9,10 @@ It speaks both wire formats the LLM respondents use:
 
 ``GET /v1/models`` (the readiness check) answers from its own FIFO
 (:meth:`LLMServer.enqueue_models`), else 200 with a model list; those requests are
-counted in ``model_checks``, not in ``requests``.
+counted in ``model_checks``, not in ``requests``. The canary prompts of the behavioural
+fingerprint (:mod:`popnavshift.responses.llm.canaries`) are answered by ``weights`` (a
+stand-in for the model's weights: change it and the canary answers change) and counted
+in ``canary_calls``, not in ``requests``.
 
 Every POST request is recorded (path, headers, JSON body). Replies come from a FIFO
 script (:meth:`LLMServer.enqueue`), then from a ``responder`` callable, then
@@ -30,6 +33,7 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Any
 
 from popnavshift.personas.fields import REQUIRED_FIELDS, vocabulary
+from popnavshift.responses.llm.canaries import CANARY_PROMPTS
 from popnavshift.responses.probes import PROBE_IDS
 from popnavshift.responses.respondent import ProbeRequest
 from popnavshift.responses.schema import LEVELS
@@ -129,6 +133,11 @@ class LLMServer(ThreadingHTTPServer):
         self.script: deque[Reply] = deque()
         self.models_script: deque[Reply] = deque()
         self.model_checks = 0
+        self.canary_calls = 0
+        #: what the canaries are answered from: another value stands for other weights
+        self.weights = "model-a"
+        #: answer each canary differently every time (a server that is not reproducible)
+        self.unstable_canaries = False
         self.responder: Callable[[Recorded], Reply] | None = None
         self.in_flight = 0
         self.max_in_flight = 0
@@ -203,6 +212,10 @@ class _Handler(BaseHTTPRequestHandler):
             body = {"_unparsed": data.decode("utf-8", "replace")}
         rec = Recorded(self.path, {k.lower(): v for k, v in self.headers.items()}, body,
                        time.monotonic())
+        canary = _canary_text(self.server, body)
+        if canary is not None:
+            self._send(Reply(text=canary, finish="length"), gemini=False)
+            return
         reply = self.server.next_reply(rec)
         try:
             if reply.delay:
@@ -229,6 +242,19 @@ class _Handler(BaseHTTPRequestHandler):
             self.send_header(k, v)
         self.end_headers()
         self.wfile.write(payload)
+
+
+def _canary_text(server: LLMServer, body: Any) -> str | None:
+    """The answer to a canary prompt (None: ``body`` asks none), from the server's
+    ``weights``."""
+    messages = body.get("messages") if isinstance(body, dict) else None
+    prompt = messages[-1].get("content") if isinstance(messages, list) and messages else None
+    if prompt not in CANARY_PROMPTS:
+        return None
+    with server.lock:
+        server.canary_calls += 1
+        salt = server.canary_calls if server.unstable_canaries else 0
+    return f"{server.weights}:{CANARY_PROMPTS.index(prompt)}:{salt}"
 
 
 def _openai(text: str, reply: Reply) -> dict[str, Any]:

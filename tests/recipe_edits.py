@@ -24,10 +24,10 @@ class Creep(Reactive):
 '''
 CONTROLLER: Edits = {
     "sim/controllers/creep.py": [("", CREEP)],
-    "sim/controllers/builtin.py": [("from . import early_yield, reactive",
-                                    "from . import creep, early_yield, reactive"),
-                                   ('    "robot_orca": RobotORCA,\n',
-                                    '    "robot_orca": RobotORCA,\n    "creep": creep.Creep,\n')],
+    "sim/controllers/builtin.py": [
+        ('    "robot_orca": "popnavshift.sim.controllers.robot_orca:RobotORCA",\n',
+         '    "robot_orca": "popnavshift.sim.controllers.robot_orca:RobotORCA",\n'
+         '    "creep": "popnavshift.sim.controllers.creep:Creep",\n')],
 }
 
 #: "A population condition": a selector in _SELECTORS and its name in POPULATIONS.
@@ -39,21 +39,21 @@ POPULATION: Edits = {"populations/build.py": [
      '    "low_caution": lambda b: b["caution"] <= b["caution"].quantile(0.25),\n'),
 ]}
 
-#: "A report section": a function returning a Section, and one line of SECTIONS.
+#: "A report section": a SectionSpec (id, title, content) and one line of SECTIONS.
 SECTION: Edits = {
     "report/study_sections.py": [("", '''
 
-def episodes_count_section(a: Analysis) -> Section:
+def _episodes_count(p: Page, _: pd.DataFrame) -> list[Block]:
     """How many cells the analysis holds (a test section)."""
-    s = Section("episodes", "Cells analysed")
-    s.blocks.append(para(f"{a.cells['cell'].nunique()} cells were analysed."))
-    return s
+    return [para(f"{p.a.cells['cell'].nunique()} cells were analysed.")]
+
+
+EPISODES_COUNT = SectionSpec("episodes", "Cells analysed", _episodes_count)
 ''')],
-    "report/page.py": [("    replays_section,\n",
-                        "    episodes_count_section,\n    replays_section,\n"),
-                       ('    ("replays", lambda p: replays_section(p.a)),\n',
-                        '    ("episodes", lambda p: episodes_count_section(p.a)),\n'
-                        '    ("replays", lambda p: replays_section(p.a)),\n')],
+    "report/page.py": [
+        ("from .study_sections import CHECKS, MANIFEST, POPULATIONS, REPLAYS\n",
+         "from .study_sections import CHECKS, EPISODES_COUNT, MANIFEST, POPULATIONS, REPLAYS\n"),
+        ("    REPLAYS,\n    MANIFEST,\n)", "    EPISODES_COUNT,\n    REPLAYS,\n    MANIFEST,\n)")],
 }
 
 #: "A paper finding": one Claim in CLAIMS (key, statement, needs, missing, check) with
@@ -129,8 +129,8 @@ def reverse_members(populations: pd.DataFrame, arg: str, seed: int) -> pd.DataFr
 
 
 #: The structure perturbations of Mapping A'''),
-    ('    "block": Structure(tuple(BLOCKS), profiles=block_profiles),\n',
-     '    "block": Structure(tuple(BLOCKS), profiles=block_profiles),\n'
+    ('    "block": Structure(tuple(BLOCKS), profiles=block_profiles, words="{arg} block only"),\n',
+     '    "block": Structure(tuple(BLOCKS), profiles=block_profiles, words="{arg} block only"),\n'
      '    "reverse": Structure(populations=reverse_members),\n'),
 ]}
 

@@ -26,8 +26,8 @@ RNG_SEED, N_BOOT, REPLAYS = 0, 200, 1
 
 def run_and_report(folder: Path) -> Path:
     """:data:`STUDY` run into ``folder`` and reported; ``folder``."""
+    from popnavshift.design.study import study_from_dict
     from popnavshift.engine.runner import run_study
-    from popnavshift.engine.study import study_from_dict
     from popnavshift.report import build_report
 
     run_study(study_from_dict(STUDY), folder, workers=1, show_progress=False)

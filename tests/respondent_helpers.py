@@ -11,10 +11,10 @@ import pandas as pd
 
 from popnavshift.analysis.audit_verdict import MIN_PERMUTATIONS, audit_tables
 from popnavshift.analysis.study import Analysis
-from popnavshift.engine.folder import StudyFolder
-from popnavshift.engine.respondent_tables import read_respondent_tables
 from popnavshift.hashing import stable_seed
 from popnavshift.personas.variants import matched_ids
+from popnavshift.read.folder import StudyFolder
+from popnavshift.read.respondent_tables import read_respondent_tables
 from popnavshift.report.page import render_report
 from popnavshift.responses.collect import collect_responses
 from popnavshift.responses.probes import PROBE_IDS
@@ -48,7 +48,9 @@ def answers(personas: pd.DataFrame, respondent: Respondent) -> pd.DataFrame:
 def render_audit(folder: Path) -> str:
     """The report page of a folder holding only respondent tables: the audit and its banner."""
     tables = audit_tables(*read_respondent_tables(folder), n_perm=MIN_PERMUTATIONS, n_boot=200)
-    study = StudyFolder(folder, pd.DataFrame(), pd.DataFrame(), None, None, {}, {})
+    study = StudyFolder(folder, manifest={}, tables={"runs": pd.DataFrame(),
+                                                     "pedestrians": pd.DataFrame(),
+                                                     "populations": None, "episodes": None})
     a = Analysis(selection="none", tables=tables,
-                 missing={"evidence": "no comparison was run", "delays": "none"})
+                 missing={"evidence_headline": "no comparison was run"}, delays_missing="none")
     return render_report(study, a, {}, folder / "report", {})

@@ -17,8 +17,7 @@ import numpy as np
 import pandas as pd
 
 from popnavshift.analysis import cell_key
-from popnavshift.populations.identity import PopulationSpec
-from popnavshift.populations.nulls import null_populations
+from popnavshift.populations.identity import PopulationSpec, null_populations
 from popnavshift.tables import NO_ROBOT
 
 Effect = Callable[[int, str], float]  # (cell index, controller) → added delay [s]
@@ -63,6 +62,8 @@ def synthetic_study(populations: dict[str, Effect], *, n_cells: int = 12, varian
                                      "outcome": "success" if robot else "none",
                                      "robot_time": rt if robot else np.nan,
                                      "robot_min_clearance": 0.8 if robot else np.nan,
+                                     "robot_path_length": 20.0 if robot else np.nan,
+                                     "robot_stop_time": 0.5 if robot else np.nan,
                                      "error": None})
                         for s in range(n_peds):
                             t = base_t[s] + delay[s]
@@ -81,14 +82,29 @@ def synthetic_cells(n_cells: int) -> list[tuple[str, float, float, float]]:
             for i in range(n_cells)]
 
 
-def crossover(cells: Sequence[int], size: float, sign: float) -> Effect:
-    """Controller ``a`` is ``sign · size`` s slower (delay and robot time) in ``cells``."""
+def crossover(cells: Sequence[int], size: float, sign: float, controller: str = "a") -> Effect:
+    """``controller`` is ``sign · size`` s slower (delay and robot time) in ``cells``."""
     chosen = set(cells)
 
-    def effect(cell: int, controller: str) -> float:
-        return sign * size if (cell in chosen and controller == "a") else 0.0
+    def effect(cell: int, ctrl: str) -> float:
+        return sign * size if (cell in chosen and ctrl == controller) else 0.0
 
     return effect
+
+
+#: the cells where :func:`swap_study` injects its crossover
+CROSS_CELLS = (0, 1, 2, 3, 4, 5)
+
+
+def swap_study(n_null: int, *, inject: float, seed: int, shifted: str = "a", **kw):
+    """The matched pair (controller ``shifted`` slower by ∓inject in CROSS_CELLS) and
+    ``n_null`` swap permutations, whose arms mix the two directions and so carry no shift."""
+    pops = {"matched_base": crossover(CROSS_CELLS, inject, -1.0, shifted),
+            "matched_deadline": crossover(CROSS_CELLS, inject, +1.0, shifted)}
+    for k in range(1, n_null + 1):
+        pops[PopulationSpec.swap(k, "a").name] = no_effect
+        pops[PopulationSpec.swap(k, "b").name] = no_effect
+    return synthetic_study(pops, seed=seed, **kw)
 
 
 def design_specs(runs: pd.DataFrame, kind: str, of: Sequence[str] = ()) -> list[PopulationSpec]:

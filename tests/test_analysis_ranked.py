@@ -113,8 +113,8 @@ TINY = {"name": "recipe", "seed": 0, "personas": {"source": "synthetic", "n": 30
 
 @pytest.fixture(scope="module")
 def tiny_study(tmp_path_factory) -> Path:
+    from popnavshift.design.study import study_from_dict
     from popnavshift.engine.runner import run_study
-    from popnavshift.engine.study import study_from_dict
 
     folder = tmp_path_factory.mktemp("tiny")
     run_study(study_from_dict(TINY), folder, workers=1, show_progress=False)

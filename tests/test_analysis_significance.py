@@ -21,21 +21,16 @@ from popnavshift.analysis.significance import (
     orderings,
 )
 from popnavshift.analysis.verdicts import ABOVE, BELOW, clopper_pearson
-from popnavshift.populations.identity import MATCHED_PAIR, PopulationSpec
-from synth_study import crossover, design_specs, no_effect, synthetic_cells, synthetic_study
-
-CROSS_CELLS = (0, 1, 2, 3, 4, 5)
-
-
-def swap_study(n_null: int, *, inject: float, seed: int, **kw):
-    """The matched pair (controller a shifted by ∓inject in CROSS_CELLS) and ``n_null``
-    swap permutations, whose arms mix the two directions and so carry no shift."""
-    pops = {"matched_base": crossover(CROSS_CELLS, inject, -1.0),
-            "matched_deadline": crossover(CROSS_CELLS, inject, +1.0)}
-    for k in range(1, n_null + 1):
-        pops[PopulationSpec.swap(k, "a").name] = no_effect
-        pops[PopulationSpec.swap(k, "b").name] = no_effect
-    return synthetic_study(pops, seed=seed, **kw)
+from popnavshift.populations.identity import MATCHED_PAIR
+from synth_study import (
+    CROSS_CELLS,
+    crossover,
+    design_specs,
+    no_effect,
+    swap_study,
+    synthetic_cells,
+    synthetic_study,
+)
 
 
 def analyse_matched(runs, peds, *, n_boot=200, seed=0, metrics=("mean_delay", "robot_time")):

@@ -11,16 +11,21 @@ ROOT = Path(__file__).resolve().parents[1] / "src" / "popnavshift"
 
 #: bottom to top: a module may import its own layer's modules and lower layers only
 LAYERS: tuple[frozenset[str], ...] = (
-    frozenset({"errors", "version", "hashing", "redact", "registry", "progress", "io", "strict"}),
+    frozenset({"errors", "version", "hashing", "redact", "registry", "progress", "io", "strict",
+               "outputs"}),
     frozenset({"table_spec"}),
-    frozenset({"tables", "paper"}),
+    frozenset({"tables", "paper", "controller_ids", "result_tables"}),
     frozenset({"personas", "episodes", "viz", "dictionary"}),
     frozenset({"responses", "profiles"}),
     frozenset({"populations"}),
-    frozenset({"sim"}),
+    frozenset({"design"}),
     frozenset({"pipeline"}),
+    frozenset({"read"}),
+    frozenset({"analysis"}),
+    # the simulator and the engine sit above the read side: reading and analysing a
+    # finished study folder never imports them (nor navground)
+    frozenset({"sim"}),
     frozenset({"engine"}),
-    frozenset({"analysis", "access"}),
     frozenset({"report", "evaluate"}),
     frozenset({"cli"}),
     frozenset({"__main__", ""}),  # "" = the package's __init__

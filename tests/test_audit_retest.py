@@ -13,11 +13,11 @@ import pytest
 
 from popnavshift.analysis.audit_retest import fleiss_kappa, icc_oneway, retest
 from popnavshift.analysis.audit_verdict import MIN_ICC, USABLE, WEAK, audit_respondent
-from popnavshift.engine.respondent_tables import RespondentTables
 from popnavshift.hashing import unit_hash
 from popnavshift.personas.synthetic import generate_personas
 from popnavshift.personas.variants import matched_ids
 from popnavshift.profiles.mappings import build_profiles
+from popnavshift.read.respondent_tables import RespondentTables
 from popnavshift.responses.collect import collect_responses
 from popnavshift.responses.probes import PROBE_IDS
 from popnavshift.responses.respondent import Answer, ProbeRequest, Progress, Respondent

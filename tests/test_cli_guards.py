@@ -129,8 +129,8 @@ def test_run_refuses_a_folder_that_is_not_a_study(tmp_path):
 
 
 def test_a_command_without_force_does_not_offer_it(tmp_path):
+    from popnavshift.design.study import load_study
     from popnavshift.engine.ownership import claim_folder
-    from popnavshift.engine.study import load_study
     from popnavshift.errors import ConfigError
 
     (tmp_path / "notes.txt").write_text("mine")
@@ -257,37 +257,50 @@ def test_plan_from_a_damaged_or_hostile_power_table(study):
 
 
 # ---- 5. LLM waits are bounded and said ------------------------------------------------
-def test_a_long_retry_after_is_capped_and_a_deadline_holds(caplog, monkeypatch):
+def test_a_retry_after_beyond_the_cap_stops_and_a_deadline_holds(caplog, monkeypatch):
     from popnavshift.responses.llm import retries
 
     naps: list[float] = []
-    monkeypatch.setattr(retries.time, "sleep", naps.append)
-    policy = retries.RetryPolicy(max_retries=50, deadline=200.0)
-    assert policy.delay(1, retry_after=3600) == retries.MAX_RETRY_AFTER == 60.0
+    now = [0.0]
 
-    def limited():
+    def nap(seconds: float) -> None:  # the clock moves only while a retry waits
+        naps.append(seconds)
+        now[0] += seconds
+
+    monkeypatch.setattr(retries.time, "sleep", nap)
+    monkeypatch.setattr(retries.time, "monotonic", lambda: now[0])
+    policy = retries.RetryPolicy(max_retries=50)
+
+    def limited(timeout):
         raise retries.RetryableError("HTTP 429", retry_after=3600)
 
-    clock = iter(range(0, 10_000, 61))  # each nap of 60 s moves the clock
-    monkeypatch.setattr(retries.time, "monotonic", lambda: float(next(clock)))
-    with (caplog.at_level(logging.WARNING, "popnavshift"),
-          pytest.raises(retries.TransportFailure, match="deadline of 200 s")):
+    with pytest.raises(retries.TransportFailure, match="asks to wait 3600 s") as err:
         retries.send_with_retries(limited, policy, retries.RateLimiter(None))
-    assert naps and max(naps) == 60.0 and len(naps) < 5
+    assert err.value.fatal and naps == []  # every record would wait an hour: stop now
+
+    def within(timeout):
+        raise retries.RetryableError("HTTP 429", retry_after=60)
+
+    with (caplog.at_level(logging.WARNING, "popnavshift"),
+          pytest.raises(retries.DeadlineReached, match="before a retry after HTTP 429")):
+        retries.send_with_retries(within, policy, retries.RateLimiter(None),
+                                  retries.Clock(end=200.0, seconds=200.0))
+    assert naps == [60.0, 60.0, 60.0]  # a fourth wait would end past 200 s: not begun
     assert "HTTP 429" in caplog.text and "retry 1/50 in 60.00 s" in caplog.text
 
 
 def test_probe_stops_at_its_deadline(tmp_path):
     assert cli("personas", "--n", "4", "--out", str(tmp_path)).returncode == 0
     with serve() as server:
-        server.responder = lambda rec: Reply(status=429, headers={"Retry-After": "3600"})
+        server.responder = lambda rec: Reply(status=429, headers={"Retry-After": "3"})
         proc = cli("probe", "--respondent", "openai", "--base-url", server.openai_url,
                    "--model", "m", "--api-key-env", "none", "--matched-n", "1",
-                   "--out", str(tmp_path), "--max-retries", "20", "--max-retry-after", "3",
+                   "--out", str(tmp_path), "--max-retries", "20", "--max-retry-after", "5",
                    "--deadline", "2", "--concurrency", "1", "--max-failures", "1")
     assert proc.returncode == 2, proc.stderr
-    # the first wait (3 s, capped from an hour) would pass the deadline: it stops at once
-    assert "HTTP 429" in proc.stderr and "deadline of 2 s" in proc.stderr
+    # the first wait (3 s) would pass the deadline: it stops at once, nothing written
+    assert "HTTP 429" in proc.stderr and "deadline of 2 s was reached" in proc.stderr
+    assert not (tmp_path / "responses.parquet").exists()
     assert "Traceback" not in proc.stderr
 
 

@@ -1,9 +1,12 @@
-"""``popnavshift compare``: several controllers' cards side by side in one page and one
-table, on the quick study; the table on synthetic runs; Markdown and LaTeX export."""
+"""``popnavshift leaderboard`` and ``compare``: controllers' cards side by side in one page
+and one table, on the quick study (the leaderboard first: the study's controllers and every
+navground behaviour; then a compare that reuses their cards); the table on synthetic runs;
+Markdown and LaTeX export."""
 
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -22,8 +25,12 @@ from synth_study import synthetic_study
 #: `compare` is registered by importing popnavshift.cli.evaluate (as for test_evaluate)
 MAIN = "import popnavshift.cli.evaluate; from popnavshift.cli import main; main()"
 FOUR = ("reactive", "early_yield", "robot_orca", "HRVO")
-CARD_TABLES = ("outcomes", "per_population", "gaps", "reversals", "significant_reversals",
-               "ranks", "wins", "safety_rates", "safety_differences", "errors")
+CARD_TABLES = ("outcomes", "per_population", "gaps", "robustness", "robustness_by_baseline",
+               "robustness_null_rates", "robustness_calibration", "ranks", "wins",
+               "crossovers", "safety_rates", "safety_differences", "errors")
+#: the leaderboard's rows on the quick study: its controllers, then navground's behaviours
+BOARD = ("reactive", "early_yield", "robot_orca", "Dummy", "HL", "HRVO", "ORCA",
+         "SocialForce")
 
 
 def cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
@@ -34,36 +41,44 @@ def cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess,
                                       subprocess.CompletedProcess]:
-    """compare run twice in a fresh folder: the first runs the quick study (as
-    `popnavshift run quick` would, without its report), evaluates and cards all four
-    controllers (HRVO's runs simulated); the second reads every card."""
+    """In a fresh folder, the leaderboard runs the quick study (as `popnavshift run quick`
+    would, without its report), evaluates and cards every row (navground's behaviours
+    simulated); then compare reads four of those cards."""
     root = tmp_path_factory.mktemp("compare")
-    args = ("compare", *FOUR, "--study-dir", "study-quick", "--n-boot", "100")
-    first = cli(*args, cwd=root)
-    second = cli(*args, cwd=root)
+    opts = ("--study-dir", "study-quick", "--n-boot", "100")
+    first = cli("leaderboard", *opts, cwd=root)
+    second = cli("compare", *FOUR, *opts, cwd=root)
     return root / "study-quick", first, second
 
 
-@pytest.mark.slow  # the quick study run and compared through the CLI (~30 s)
-def test_compare_writes_one_page_and_one_table_with_a_row_per_controller(quick):
+@pytest.mark.slow  # the quick study run and every behaviour through the CLI (~60 s)
+def test_the_leaderboard_has_every_behaviour_once_with_two_verdicts_each(quick):
     folder, first, _ = quick
     assert first.returncode == 0, first.stderr
-    assert "HRVO: 0 runs reused, 40 to run" in first.stderr
-    out = folder / "compare"
+    assert "HRVO on main: 0 runs reused, 40 to run" in first.stderr
+    out = folder / "leaderboard"
     assert sorted(p.name for p in out.iterdir()) == [
-        "compare.csv", "compare.html", "compare.md", "compare.png", "compare.tex"]
-    table = pd.read_csv(out / "compare.csv")
-    assert list(table["controller"]) == list(FOUR)
-    assert table["verdict"].notna().all() and (table["runs"] == 40).all()
-    for o in ("success", "pedestrian_collision", "world_collision"):
+        f"leaderboard.{x}" for x in ("csv", "html", "json", "md", "png", "tex")]
+    manifest = json.loads((out / "leaderboard.json").read_text())
+    assert manifest["controllers"] == list(BOARD) and manifest["settings"]["n_boot"] == 100
+    assert manifest["what"] == "leaderboard" and manifest["made"] and manifest["config_hash"]
+    table = pd.read_csv(out / "leaderboard.csv")
+    assert list(table["controller"]) == list(BOARD)  # no '' and no PyDummy
+    assert table["robustness"].isin(["population-sensitive", "robust", "undecided"]).all()
+    assert table["safety"].isin(["safe", "unsafe", "undecided", "fails every run"]).all()
+    assert (table["runs"] == 40).all() and table["min_clearance"].notna().all()
+    for o in ("success", "pedestrian_collision", "standing_contact", "world_collision"):
         assert (table[f"{o}_low"] <= table[f"{o}_pct"]).all()
         assert (table[f"{o}_pct"] <= table[f"{o}_high"]).all()
-    assert sorted(table["rank_mean_delay"]) == [1, 2, 3, 4]
-    html = (out / "compare.html").read_text()
+    assert table["rank_mean_delay"].between(1, len(BOARD)).all()
+    html = (out / "leaderboard.html").read_text()
     assert html.count("<img") == 1 and 'src="data:image/png;base64,' in html
-    assert "<script" not in html and all(c in html for c in FOUR)
-    assert (out / "compare.md").read_text().count("\n") == 2 + len(FOUR)
-    assert "early\\_yield" in (out / "compare.tex").read_text()
+    assert "<script" not in html and all(c in html for c in BOARD)
+    md = (out / "leaderboard.md").read_text()
+    assert md.count("\n") == 2 + len(BOARD) and "rank worst-decile delay" in md
+    tex = (out / "leaderboard.tex").read_text()
+    assert tex.startswith("\\begin{table}") and "\\label{tab:leaderboard}" in tex
+    assert "early\\_yield" in tex and manifest["config_hash"] in tex
 
 
 @pytest.mark.slow  # the quick study run and compared through the CLI (~30 s)
@@ -72,7 +87,8 @@ def test_each_card_writes_its_verdict_and_every_table_as_csv(quick):
     for ctrl in FOUR:
         card = folder / "evaluate" / ctrl
         verdict = json.loads((card / "card.json").read_text())
-        assert verdict["verdict"]["label"] and verdict["tables"] == [
+        assert verdict["verdict"]["robustness"]["label"] and verdict["verdict"]["safety"][
+            "label"] and verdict["popnavshift"] and verdict["made"] and verdict["tables"] == [
             f"{t}.csv" for t in CARD_TABLES]
         for t in CARD_TABLES:
             assert (card / f"{t}.csv").exists(), (ctrl, t)
@@ -84,12 +100,60 @@ def test_each_card_writes_its_verdict_and_every_table_as_csv(quick):
 
 
 @pytest.mark.slow  # the quick study run and compared through the CLI (~30 s)
-def test_a_second_compare_reads_the_cards_and_simulates_nothing(quick):
-    _, _, second = quick
+def test_a_compare_after_it_reads_the_cards_and_simulates_nothing(quick):
+    folder, _, second = quick
     assert second.returncode == 0, second.stderr
     assert second.stderr.count("card reused") == len(FOUR)
-    assert "HRVO: 40 runs reused, 0 to run" in second.stderr
+    assert "HRVO on main: 40 runs reused, 0 to run" in second.stderr
     assert "160 runs reused, 0 executed" in second.stderr
+    table = pd.read_csv(folder / "compare" / "compare.csv")
+    assert list(table["controller"]) == list(FOUR)
+    assert sorted(table["rank_mean_delay"]) == [1, 2, 3, 4]
+
+
+@pytest.mark.slow  # reads the quick study's cards
+def test_a_current_card_is_reused_without_running_anything(quick):
+    folder = quick[0]
+    proc = cli("evaluate", "HRVO", "--study-dir", "study-quick", "--n-boot", "100",
+               cwd=folder.parent)
+    assert proc.returncode == 0, proc.stderr
+    assert "card is current, reused" in proc.stderr and "runs reused" not in proc.stderr
+    proc = cli("evaluate", "HRVO", "--study-dir", "study-quick", "--n-boot", "99",
+               cwd=folder.parent)  # another rule: made again, on the same runs
+    assert proc.returncode == 0 and "card is current" not in proc.stderr, proc.stderr
+
+
+def test_the_leaderboards_rows_are_every_behaviour_once():
+    from popnavshift.design.study import load_study
+    from popnavshift.evaluate.leaderboard import NOT_CONTROLLERS, leaderboard_controllers
+
+    rows = leaderboard_controllers(load_study("quick"), ["HRVO", "ORCA{}", "Dummy"])
+    assert rows == BOARD  # extras already in are not repeated; '' and PyDummy left out
+    assert not set(rows) & set(NOT_CONTROLLERS)
+
+
+LATEX_DOC = r"""\documentclass[a4paper]{article}
+\usepackage[T1]{fontenc}
+\usepackage[utf8]{inputenc}
+\usepackage{booktabs}
+\usepackage{graphicx}
+\begin{document}
+\input{leaderboard.tex}
+\end{document}
+"""
+
+
+@pytest.mark.slow  # the quick study's leaderboard, compiled (~2 s)
+@pytest.mark.skipif(shutil.which("pdflatex") is None, reason="pdflatex is not installed "
+                    "(.ci/run installs Debian's texlive-latex-base and -recommended)")
+def test_the_leaderboards_latex_compiles_on_an_a4_page_without_an_overfull_box(quick, tmp_path):
+    shutil.copy(quick[0] / "leaderboard" / "leaderboard.tex", tmp_path)
+    (tmp_path / "doc.tex").write_text(LATEX_DOC)
+    proc = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", "doc.tex"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    log = (tmp_path / "doc.log").read_text(errors="replace")
+    assert proc.returncode == 0, log[-2000:]
+    assert "Overfull" not in log and (tmp_path / "doc.pdf").stat().st_size > 0
 
 
 def test_user_mistakes_are_one_line_errors_before_anything_runs(tmp_path):
@@ -114,9 +178,17 @@ def synthetic() -> tuple[pd.DataFrame, pd.DataFrame]:
     return runs, peds
 
 
-VERDICTS = {"a": {"label": "inconclusive", "safety": []},
-            "b": {"label": "robust in this study", "safety": []},
-            "c": {"label": "unsafe", "safety": ["pedestrian collisions in 9%", "wall contacts"]}}
+def _verdict(robustness: str, safety: str, findings: list[str]) -> dict:
+    row = {"design": "matched", "metric": "mean_delay", "excess": 0.02, "ci_low": -0.01,
+           "ci_high": 0.05} if robustness != "undecided" else {}
+    return {"robustness": {"label": robustness, "text": "", "decide": "", "row": row},
+            "safety": {"label": safety, "text": "", "findings": findings, "threshold": 0.01}}
+
+
+VERDICTS = {"a": _verdict("undecided", "undecided", []),
+            "b": _verdict("robust", "safe", []),
+            "c": _verdict("population-sensitive", "unsafe",
+                          ["pedestrian collisions in 9%", "wall contacts"])}
 
 
 def test_compare_table_ranks_shares_and_verdicts(synthetic):
@@ -127,11 +199,12 @@ def test_compare_table_ranks_shares_and_verdicts(synthetic):
     assert t.loc["b", "rank_mean_delay"] == 1 and t.loc["b", "rank_mean_delay_worst"] == 1
     assert t.loc["c", "timeout_pct"] == 50.0 and t.loc["a", "timeout_pct"] == 0.0
     assert 0 < t.loc["c", "timeout_low"] < 50 < t.loc["c", "timeout_high"] < 100
-    assert t.loc["c", "safety_findings"] == 2 and "wall contacts" in t.loc["c", "safety"]
+    assert t.loc["c", "safety_findings"] == 2 and "wall contacts" in t.loc["c", "safety_text"]
+    assert t.loc["b", "excess_pp"] == pytest.approx(2.0) and np.isnan(t.loc["a", "excess_pp"])
     assert set(per_pop["population"]) == {"p1", "p2"} and len(per_pop) == 6
     shown = display_table(table)
-    assert shown.loc[0, "timeout %"].startswith("50.0 [") and shown.loc[2, "verdict"] == (
-        "robust in this study")
+    assert shown.loc[0, "timeout %"].startswith("50.0 [") and shown.loc[2, "robustness"] == (
+        "robust") and shown.loc[2, "excess over null"].startswith("+2.0 [-1.0, +5.0] pp")
 
 
 def test_markdown_and_latex_escape_every_cell():

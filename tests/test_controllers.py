@@ -217,7 +217,19 @@ def test_a_navground_type_defined_later_is_registered_on_demand():
     assert "PopNavShiftTestLate" in CONTROLLERS
 
 
+def test_our_own_behaviours_are_never_bare_controllers():
+    """OWN_BEHAVIORS names the navground types of reactive.py and early_yield.py without
+    importing them (listing the controllers imports no controller's code)."""
+    from popnavshift.sim.controllers import builtin, early_yield, reactive
+
+    assert {reactive.NAVGROUND_NAME, early_yield.NAVGROUND_NAME} == builtin.OWN_BEHAVIORS
+    assert {reactive.NAVGROUND_NAME, early_yield.NAVGROUND_NAME} <= set(core.Behavior.types)
+    register_navground_types()
+    assert not builtin.OWN_BEHAVIORS & set(CONTROLLERS.names())
+
+
 @pytest.mark.parametrize("name, close", [("reactiv", "reactive"), ("HRV0", "HRVO"),
+                                         ("hrvo", "HRVO"), ("Reactive", "reactive"),
                                          ("early-yield", "early_yield")])
 def test_unknown_controller_suggests_the_closest_names(name, close):
     with pytest.raises(UnknownNameError, match=f"did you mean.*'{close}'"):

@@ -7,8 +7,9 @@ from pathlib import Path
 import pytest
 
 from forked_cli import run_cli
+from popnavshift.design.specs import PersonaSource
 from popnavshift.dictionary import STUDY_TABLES, data_markdown
-from popnavshift.pipeline import PersonaSource, PopulationSettings, run_personas
+from popnavshift.pipeline import PopulationSettings, run_personas
 from popnavshift.tables import SPECS
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "data.md"

@@ -14,9 +14,10 @@ import pytest
 import yaml
 
 from engine_helpers import TINY, tables, with_controllers
-from popnavshift.engine.plan import batches, count_runs, plan_study
+from popnavshift.design.plan import count_runs, plan_study
+from popnavshift.design.study import load_study, study_from_dict
+from popnavshift.engine.batches import batches
 from popnavshift.engine.runner import run_study
-from popnavshift.engine.study import load_study, study_from_dict
 from popnavshift.errors import ConfigError, UnknownNameError
 
 
@@ -89,7 +90,7 @@ def _run_in_subprocess(folder: Path, workers: int) -> subprocess.Popen:
     code = (
         "import sys, yaml\n"
         "from pathlib import Path\n"
-        "from popnavshift.engine.study import study_from_dict\n"
+        "from popnavshift.design.study import study_from_dict\n"
         "from popnavshift.engine.runner import run_study\n"
         "if __name__ == '__main__':\n"
         "    run_study(study_from_dict(yaml.safe_load(open(sys.argv[1]))), Path(sys.argv[2]),\n"
@@ -211,8 +212,8 @@ def test_changed_inputs_never_reuse_old_shards(tmp_path, reference):
 
 def test_a_part_repeats_on_extra_seed_sets_and_the_report_shows_the_spread(tmp_path):
     from popnavshift.analysis.study_robustness import seed_spread
-    from popnavshift.engine.folder import read_study_folder
     from popnavshift.episodes.specs import get_episode
+    from popnavshift.read.folder import open_study
 
     data = yaml.safe_load(yaml.safe_dump(TINY))
     data["parts"]["main"]["episodes"]["scenes"] = ["sidewalk", "bottleneck"]
@@ -228,7 +229,7 @@ def test_a_part_repeats_on_extra_seed_sets_and_the_report_shows_the_spread(tmp_p
     assert len(extra) == len(runs) / 2
     first = extra.episode.iloc[0]
     assert get_episode(first).ped_starts != get_episode(first.split("@")[0]).ped_starts
-    spread = seed_spread(read_study_folder(folder), n_boot=20)
+    spread = seed_spread(open_study(folder), n_boot=20)
     assert sorted(spread.seed_set.unique()) == [0, 5]
     assert set(spread.metric) == {"robot_time", "mean_delay", "worst_decile"}
     with pytest.raises(ConfigError, match="seed set"):

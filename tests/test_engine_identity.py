@@ -12,14 +12,14 @@ import pytest
 import yaml
 
 from engine_helpers import TINY, tables
+from popnavshift.design.plan import count_runs
+from popnavshift.design.study import study_from_dict
 from popnavshift.engine.pending import pending_runs
-from popnavshift.engine.plan import count_runs
 from popnavshift.engine.runner import run_study
 from popnavshift.engine.stages import legacy_batch_inputs
 from popnavshift.engine.stamps import code_stamps
-from popnavshift.engine.store import read_stamps
-from popnavshift.engine.study import study_from_dict
 from popnavshift.episodes.specs import all_episodes
+from popnavshift.read.checks import read_stamps
 from popnavshift.tables import ROBOT_METRICS, RUN_KEY
 
 EPISODES = {"scenes": ["sidewalk", "head_on"], "widths": [1.8], "densities": [0.06],

@@ -16,9 +16,10 @@ import pytest
 import popnavshift.cli.evaluate  # noqa: F401  (registers `evaluate`, as MAIN does)
 from example_controller import EXAMPLE, USER_MODULE, install_example
 from forked_cli import run_cli
-from popnavshift.engine.study import load_study
+from popnavshift.design.study import load_study
 from popnavshift.errors import ConfigError
 from popnavshift.evaluate import card_tables, evaluate, make_card
+from popnavshift.evaluate.robustness import robustness_tables
 from popnavshift.evaluate.card import population_gaps, worst_run
 from popnavshift.tables import check_table
 
@@ -37,12 +38,12 @@ def cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
 @pytest.fixture(scope="module")
 def first_and_second(tmp_path_factory):
     """One command twice: the first builds the quick study's baselines and the example
-    controller's runs, the second reuses all of them."""
+    controller's runs, the second (another --n-boot: the card is made again) reuses all
+    of them."""
     root = tmp_path_factory.mktemp("evaluate")
-    args = ("evaluate", CLASS_SPEC, "--study", "quick", "--study-dir", "study-quick",
-            "--n-boot", "200")
-    first = cli(*args, cwd=root)
-    second = cli(*args, cwd=root)
+    args = ("evaluate", CLASS_SPEC, "--study", "quick", "--study-dir", "study-quick")
+    first = cli(*args, "--n-boot", "199", cwd=root)
+    second = cli(*args, "--n-boot", "200", cwd=root)
     return root, first, second
 
 
@@ -78,7 +79,8 @@ def test_the_card_shows_every_section(first_and_second):
     (folder,) = (root / "study-quick" / "evaluate").iterdir()
     html = (folder / "card.html").read_text()
     for needle in ("Population robustness card", CLASS_SPEC, "Outcomes",
-                   "Ranking reversals against each baseline", "95% CI", "Per population",
+                   "Robustness: how often its orderings reverse", "beside its own null",
+                   "Safety: each failure, the same rule", "95% CI", "Per population",
                    "Where it does worst", "Worst run", "<svg", "reproduces the stored run",
                    "matched_deadline", "robot_orca", "early_yield", "reactive"):
         assert needle in html, needle
@@ -145,9 +147,12 @@ def test_the_bootstrap_seed_is_the_only_randomness(first_and_second):
     ctrl = next(c for c in ev_runs["controller"].unique() if c.startswith("slow_near_peds"))
     base = ("reactive", "early_yield", "robot_orca")
 
+    rob = robustness_tables(ev_runs, peds, ctrl, base, {}, ["homogeneous"], n_boot=20)
+
     def cis(seed):
-        card = card_tables(ev_runs, peds, ctrl, base, rng=np.random.default_rng(seed), n_boot=200)
-        return card.reversals[["ci_low", "ci_high"]].to_numpy()
+        card = card_tables(ev_runs, peds, ctrl, base, rob, rng=np.random.default_rng(seed),
+                           n_boot=200)
+        return card.safety_differences[["low", "high"]].to_numpy(float)
 
     np.testing.assert_array_equal(cis(1), cis(1))
     assert not np.array_equal(cis(1), cis(2), equal_nan=True)
@@ -208,7 +213,7 @@ def test_an_edited_controller_module_gets_a_new_stamp(tmp_path, monkeypatch):
 
 @pytest.mark.slow  # runs and evaluates a study (the quick one, or a small one)
 def test_a_study_without_no_robot_runs_or_a_baseline_gets_them_run_once(tmp_path):
-    from popnavshift.engine.study import study_from_dict
+    from popnavshift.design.study import study_from_dict
 
     study = study_from_dict({
         "name": "lean", "personas": {"n": 300}, "matched_n": 40, "mappings": ["A"],
@@ -220,7 +225,7 @@ def test_a_study_without_no_robot_runs_or_a_baseline_gets_them_run_once(tmp_path
     logs: list[str] = []
     ev = evaluate("HL", study, tmp_path / "lean", baselines=("robot_orca", "reactive"),
                   workers=1, show_progress=False, log=logs.append)
-    assert "none, HL, reactive: 0 runs reused, 12 to run" in logs
+    assert "HL, none, reactive on main: 0 runs reused, 12 to run" in logs
     assert ev.counts == {"runs": 16, "controller_runs": 4, "controller_errors": 0}
     again = evaluate("HL", study, tmp_path / "lean", baselines=("robot_orca", "reactive"),
                      workers=1, show_progress=False)
@@ -233,8 +238,8 @@ def test_a_study_without_no_robot_runs_or_a_baseline_gets_them_run_once(tmp_path
 def test_a_study_that_adds_the_evaluated_controller_reuses_its_runs(tmp_path):
     """`evaluate` and `run` share one batch executor and one batch id: the runs an
     evaluation made are the study's batches once the study plans them."""
+    from popnavshift.design.study import study_from_dict
     from popnavshift.engine.runner import run_study
-    from popnavshift.engine.study import study_from_dict
 
     part = {"populations": ["mixed", "matched_base"], "controllers": ["robot_orca"],
             "baseline": False,
@@ -267,7 +272,7 @@ def test_a_controller_written_from_scratch_on_a_bare_behavior_moves(first_and_se
     card = next((root / "study-quick" / "evaluate").glob("go_to_goal*"))
     runs = pd.read_parquet(card / "runs.parquet")
     assert len(runs) == 40 and (runs["outcome"] == "success").mean() > 0.3
-    assert json.loads((card / "card.json").read_text())["verdict"]["label"]
+    assert json.loads((card / "card.json").read_text())["verdict"]["robustness"]["label"]
 
 
 @pytest.mark.slow  # runs and evaluates a study (the quick one, or a small one)
@@ -294,6 +299,6 @@ def test_results_and_cards_as_dataframes_from_python(first_and_second):
     assert first.returncode == 0, first.stderr
     cards = popnavshift.cards(root / "study-quick")
     card = next(v for k, v in cards.items() if k.startswith("slow_near_peds"))
-    assert card["verdict"]["label"] and isinstance(card["safety_rates"], pd.DataFrame)
+    assert card["verdict"]["safety"]["label"] and isinstance(card["safety_rates"], pd.DataFrame)
     with pytest.raises(popnavshift.errors.InputError, match="popnavshift report"):
         popnavshift.results(root / "nowhere")

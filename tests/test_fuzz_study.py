@@ -20,10 +20,11 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from forked_cli import run_cli
-from popnavshift.engine.plan import plan_study
+from popnavshift.design.part import SCENES
+from popnavshift.design.plan import plan_study
+from popnavshift.design.study import parse_study_yaml, study_from_dict
 from popnavshift.engine.runner import population_settings
 from popnavshift.engine.stages import stage_stamps
-from popnavshift.engine.study import SCENES, parse_study_yaml, study_from_dict
 from popnavshift.engine.validate import validate_study
 from popnavshift.episodes.specs import all_episodes, get_episode
 from popnavshift.errors import PopNavShiftError

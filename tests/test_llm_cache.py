@@ -11,7 +11,7 @@ import pytest
 
 from llm_server import valid_answer, valid_text
 from popnavshift.errors import RespondentError
-from popnavshift.responses.llm.cache import ResponseCache, request_key
+from popnavshift.responses.llm.cache import SCHEMA_VERSION, ResponseCache, request_key
 
 TOKENS = {"prompt": 10, "completion": 5, "total": 15}
 
@@ -148,4 +148,4 @@ def test_an_older_cache_file_is_migrated_and_still_answers(tmp_path, version):
         cache.put("k2", persona_id="p1", variant="baseline", model="m", raw=valid_text(),
                   attempts=1, tokens=TOKENS, fingerprint="fp_1")
         assert cache.get("k2").fingerprint == "fp_1"
-    assert sqlite3.connect(path).execute("PRAGMA user_version").fetchone()[0] == 3
+    assert sqlite3.connect(path).execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 4

@@ -9,7 +9,7 @@ import json
 import pytest
 
 from llm_server import Reply, make_requests, serve
-from popnavshift.errors import TransportError
+from popnavshift.errors import ConfigError, TransportError
 from popnavshift.responses.llm import OpenAIRespondent
 from popnavshift.responses.llm.identity import listing_identity
 
@@ -72,3 +72,101 @@ def test_listing_identity_picks_the_requested_model_or_the_only_one():
     assert listing_identity(many, "gpt-a") != listing_identity(many, "gpt-b")
     assert listing_identity(many, "gpt-c") is None
     assert listing_identity({"object": "list"}, "m") is None and listing_identity([], "m") is None
+
+
+def llama_props(path: str = "/home/alice/models/SmolLM2-135M-Instruct.Q4_1.gguf",
+                slots: int = 1, build: str = "b7000-abc") -> Reply:
+    """llama.cpp's ``GET /props``: the model's path, its build, and slot settings."""
+    return Reply(raw=json.dumps({"model_path": path, "build_info": build, "total_slots": slots,
+                                 "model_ftype": "Q4_1",
+                                 "default_generation_settings": {"n_ctx": 4096 // slots}}
+                                ).encode())
+
+
+def llama_server_listing(n_ctx: int, path: str = "/home/alice/models/x.gguf") -> Reply:
+    """llama.cpp's listing as a server without ``--alias`` gives it: the model named by its
+    path, the slot context ``n_ctx`` (``-c`` / ``-np``) beside the model's own meta."""
+    return Reply(raw=json.dumps({"object": "list", "data": [
+        {"id": path, "object": "model", "created": 5, "owned_by": "llamacpp",
+         "meta": {"vocab_type": 2, "n_vocab": 49152, "n_ctx": n_ctx, "n_ctx_train": 8192,
+                  "n_embd": 576, "n_params": 134515008, "size": 94000000,
+                  "ftype": "Q4_1"}}]}).encode())
+
+
+def llama_run(server, tmp_path, n_ctx: int = 4096, slots: int = 1, **kw) -> list:
+    """One run of 3 records against a llama.cpp-like server; its answers."""
+    server.enqueue_models(llama_server_listing(n_ctx), llama_props(slots=slots))
+    respondent = make(server, tmp_path)
+    for k, v in kw.items():
+        setattr(respondent, k, v)
+    answers = respondent.answer_all(make_requests(3))
+    assert all(a.answer is not None for a in answers)
+    return answers
+
+
+def test_a_model_changed_in_its_weights_only_is_asked_again_and_comes_back(
+        server, tmp_path, caplog):
+    llama_run(server, tmp_path)
+    assert server.calls == 3
+    server.weights = "model-b"  # same name, file, size, parameters, build: other weights
+    with caplog.at_level("WARNING", logger="popnavshift"):
+        llama_run(server, tmp_path)
+    assert server.calls == 6
+    said = [r.getMessage() for r in caplog.records if "canary" in r.getMessage()]
+    assert len(said) == 1 and "asked again" in said[0] and "weights changed" in said[0]
+    server.weights = "model-a"  # the former model back: its answers are still there
+    llama_run(server, tmp_path)
+    assert server.calls == 6
+
+
+def test_a_restart_with_other_slots_or_context_asks_nothing_again(server, tmp_path):
+    llama_run(server, tmp_path, n_ctx=4096, slots=1)
+    llama_run(server, tmp_path, n_ctx=2048, slots=2)
+    llama_run(server, tmp_path, n_ctx=8192, slots=4)
+    assert server.calls == 3
+
+
+def test_a_server_that_answers_the_canaries_differently_each_time_keeps_its_cache(
+        server, tmp_path, caplog):
+    server.unstable_canaries = True
+    llama_run(server, tmp_path)
+    with caplog.at_level("WARNING", logger="popnavshift"):
+        llama_run(server, tmp_path)
+    assert server.calls == 3  # nothing asked again: a swap cannot be seen, and it says so
+    assert any("differently twice in a row" in r.getMessage() for r in caplog.records)
+
+
+def test_a_model_sha256_keys_the_cache_and_is_recorded(server, tmp_path):
+    digest_a, digest_b = "a" * 64, "B" * 64
+    [first, *_] = llama_run(server, tmp_path, model_sha256=digest_a)
+    llama_run(server, tmp_path, model_sha256=digest_a)
+    assert server.calls == 3
+    llama_run(server, tmp_path, model_sha256=digest_b)
+    assert server.calls == 6
+    respondent = make(server, tmp_path)
+    respondent.model_sha256 = "not-a-digest"
+    with pytest.raises(ConfigError, match="model_sha256 must be None or the 64 hex digits"):
+        respondent.answer_all(make_requests(1))
+
+
+def test_records_hold_the_identity_without_a_machine_path(server, tmp_path):
+    respondent = make(server, tmp_path)
+    server.enqueue_models(llama_server_listing(4096), llama_props())
+    server.responder = lambda rec: Reply(model="/home/alice/models/x.gguf")
+    answers = respondent.answer_all(make_requests(2))
+    details = respondent.served_details
+    assert {a.served_model for a in answers} == {"x.gguf"}
+    assert details["model_file"] == "SmolLM2-135M-Instruct.Q4_1.gguf"
+    assert (details["model_quant"], details["server_build"]) == ("Q4_1", "b7000-abc")
+    assert (details["model_size"], details["model_params"]) == (94e6, 134515008.0)
+    assert len(details["model_canaries"]) == 64
+    assert "/home/alice" not in json.dumps(details)
+    # the cached answers come back without the path too
+    server.enqueue_models(llama_server_listing(4096), llama_props())
+    again = make(server, tmp_path).answer_all(make_requests(2))
+    assert {a.served_model for a in again} == {"x.gguf"} and all(a.cached for a in again)
+
+
+def test_no_fingerprint_when_switched_off(server, tmp_path):
+    llama_run(server, tmp_path, fingerprint=False)
+    assert server.canary_calls == 0

@@ -16,7 +16,7 @@ import pytest
 from cli_helpers import cli, tiny_study
 from forked_cli import run_cli
 from llm_server import Reply, make_requests, serve, valid_text
-from popnavshift.engine.study import study_from_dict
+from popnavshift.design.study import study_from_dict
 from popnavshift.errors import ConfigError, RespondentError, TransportError
 from popnavshift.progress import PlainLines
 from popnavshift.redact import MASK, redact, register_secret
@@ -76,7 +76,7 @@ def test_extra_body_reaches_the_request_and_the_key(server, tmp_path):
     make(server, tmp_path, extra_body={"cache_prompt": False}).answer_all(reqs)
     assert server.calls == 4
     assert [r.body.get("cache_prompt") for r in server.requests] == [None, None, False, False]
-    with pytest.raises(ConfigError, match="extra_body must be"):
+    with pytest.raises(ConfigError, match="extra_body.seed is refused: set by the respondent"):
         make(server, tmp_path, extra_body={"seed": 3}).answer_all(reqs)
 
 
@@ -180,7 +180,7 @@ def test_a_study_with_two_samples_end_to_end(tmp_path):
     assert "median" in manifest["aggregation"]
     audit = run_cli("audit", str(tmp_path / "s"), "--permutations", "319", "--boot", "100")
     assert audit.returncode == 0, audit.stderr
-    assert "test–retest: 2 samples of 40 records" in audit.stderr
+    assert "test–retest: 2 samples of 40 records" in audit.stdout  # its tables are its output
 
 
 def test_samples_without_a_seed_are_refused_by_the_study_check_before_any_stage():

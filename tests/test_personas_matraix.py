@@ -534,11 +534,12 @@ def test_cli_decodes_a_release_laid_out_as_published(tmp_path, recs):
 
 
 def test_a_study_file_passes_the_release_policy_to_the_persona_stage(tmp_path, recs):
+    from popnavshift.design.specs import PersonaSource
+    from popnavshift.design.study import study_from_dict
     from popnavshift.engine.runner import population_settings
     from popnavshift.engine.stages import stage_stamps
-    from popnavshift.engine.study import study_from_dict
     from popnavshift.hashing import digest
-    from popnavshift.pipeline import PersonaSource, PopulationSettings, run_personas
+    from popnavshift.pipeline import PopulationSettings, run_personas
 
     folder = write_release(tmp_path / "rel", recs)
     personas = {"source": str(folder), "n": 10, "sources": ["wiki", "gss"],

@@ -2,19 +2,22 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
-from popnavshift.engine.study import study_from_dict
+from popnavshift.design.study import study_from_dict
 from popnavshift.errors import ConfigError
 from popnavshift.personas.synthetic import generate_personas
 from popnavshift.personas.variants import matched_ids
 from popnavshift.populations.build import POPULATIONS, membership
-from popnavshift.populations.identity import PopulationSpec, index_of
-from popnavshift.populations.nulls import (
+from popnavshift.populations.identity import (
+    PopulationSpec,
+    Records,
+    index_of,
+    null_kind,
     null_populations,
-    sized_subset,
-    swap_variants,
 )
+from popnavshift.populations.nulls import sized_subset, swap_variants
 from popnavshift.profiles.mappings import build_profiles
 from popnavshift.responses.collect import collect_responses
 from popnavshift.responses.rule import RuleRespondent
@@ -45,10 +48,24 @@ def test_swap_arms_hold_the_matched_personas_with_complementary_profiles(members
     assert (arm1 != arm2).any()  # permutations differ
 
 
+def drawn(spec: PopulationSpec, members: dict[str, list[str]], seed: int) -> list:
+    """The members of null population ``spec`` drawn by its kind's declaration from
+    conditions holding ``members`` (persona ids, baseline)."""
+    records = Records(lambda s: [(p, "baseline") for p in members[s.name]], seed)
+    return null_kind(spec).members(spec, records)
+
+
 def test_swap_coins_follow_the_seed():
     ids = [f"p{i:03d}" for i in range(50)]
-    assert swap_variants(ids, 1, "a", 0) == swap_variants(ids, 1, "a", 0)
-    assert swap_variants(ids, 1, "a", 0) != swap_variants(ids, 1, "a", 1)
+    pair = {"matched_base": ids}
+    arm = PopulationSpec.swap(1, "a")
+    assert drawn(arm, pair, 0) == drawn(arm, pair, 0)
+    assert drawn(arm, pair, 0) != drawn(arm, pair, 1)
+    assert drawn(arm, pair, 0) != drawn(PopulationSpec.swap(2, "a"), pair, 0)
+    other = dict(drawn(PopulationSpec.swap(1, "b"), pair, 0))
+    assert all(other[p] != v for p, v in drawn(arm, pair, 0))  # complementary arms
+    rng = np.random.default_rng(0)
+    assert swap_variants(ids, "a", rng) != swap_variants(ids, "a", rng)  # the rng is the draw
 
 
 def test_sized_subsets_match_sizes_and_come_from_mixed(members):
@@ -68,10 +85,15 @@ def test_sized_subsets_match_sizes_and_come_from_mixed(members):
 
 
 def test_sized_subset_is_deterministic_and_sorted():
-    src = [f"p{i}" for i in range(40)]
-    one = sized_subset(src, 10, "high_caution", 1, seed=0)
-    assert one == sized_subset(src, 10, "high_caution", 1, seed=0) == sorted(one)
-    assert one != sized_subset(src, 10, "low_robot_trust", 1, seed=0)
+    src = {"mixed": [f"p{i}" for i in range(40)], "high_caution": [f"p{i}" for i in range(10)],
+           "low_robot_trust": [f"p{i}" for i in range(10)]}
+    one = [p for p, _ in drawn(PopulationSpec.sized("high_caution", 1), src, 0)]
+    assert one == [p for p, _ in drawn(PopulationSpec.sized("high_caution", 1), src, 0)]
+    assert one == sorted(one) and len(one) == 10 and set(one) <= set(src["mixed"])
+    assert one != [p for p, _ in drawn(PopulationSpec.sized("low_robot_trust", 1), src, 0)]
+    assert one != [p for p, _ in drawn(PopulationSpec.sized("high_caution", 2), src, 0)]
+    assert one != [p for p, _ in drawn(PopulationSpec.sized("high_caution", 1), src, 1)]
+    assert sized_subset(src["mixed"], 50, np.random.default_rng(0)) == sorted(src["mixed"])
 
 
 def swap_name(k: int, arm: str) -> str:
@@ -110,12 +132,13 @@ def test_a_swap_null_part_stands_for_the_matched_pair():
                                              for a in "ab")
     bad = {"name": "t", "parts": {"n": {"populations": ["mixed"],
                                         "null_design": {"kind": "swap"}}}}
-    with pytest.raises(ConfigError, match="swap null stands in for the matched pair"):
+    with pytest.raises(ConfigError, match="swap null stands in for matched_base and "
+                                          "matched_deadline"):
         study_from_dict(bad, "t")
 
 
 def test_population_columns_say_what_a_population_is():
-    from popnavshift.populations.nulls import with_population_columns
+    from popnavshift.populations.identity import with_population_columns
 
     assert PopulationSpec("mixed").columns() == {"population_role": "observed",
                                                  "null_replicate": 0}
@@ -130,3 +153,34 @@ def test_population_columns_say_what_a_population_is():
     filled = with_population_columns(old, index_of([PopulationSpec.swap(2, "b")]))
     assert list(filled["population_role"]) == ["observed", "swap_null"]
     assert list(filled["null_replicate"]) == [0, 2]
+
+
+def test_headline_designs_pair_each_observed_pair_with_the_first_null_kind_the_study_ran():
+    from popnavshift.analysis.nulls import headline_designs
+    from popnavshift.populations.identity import MATCHED_PAIR
+
+    obs = ["mixed", "high_caution", *MATCHED_PAIR]
+    observed = [PopulationSpec(p) for p in obs]
+    swaps = null_populations("swap", 3, MATCHED_PAIR)
+    sized = null_populations("sized", 2, tuple(obs))
+    none = headline_designs(observed, obs)
+    assert (none["matched"].null, none["matched"].nulls) == ("swap", [])
+    assert (none["all_pairs"].null, none["all_pairs"].nulls) == ("sized", [])
+    both = headline_designs([*observed, *swaps, *sized], obs)
+    assert both["matched"].nulls == [[(swap_name(k, "a"), swap_name(k, "b"))] for k in (1, 2, 3)]
+    pairs = both["all_pairs"]
+    assert pairs.null == "sized" and len(pairs.nulls) == 2  # replicates with every pair's null
+    first = dict(zip(pairs.observed, pairs.nulls[0], strict=True))
+    assert first[("mixed", "high_caution")] == ("mixed", sized_name("high_caution", 1))
+    assert first[MATCHED_PAIR] == (swap_name(1, "a"), swap_name(1, "b"))  # same personas
+    only_sized = headline_designs([*observed, *sized], obs)
+    assert only_sized["matched"].nulls == []  # a sized null is no null of the matched pair
+    assert dict(zip(pairs.observed, only_sized["all_pairs"].nulls[1], strict=True))[
+        MATCHED_PAIR] == tuple(sized_name(p, 2) for p in MATCHED_PAIR)
+
+
+def test_a_null_of_a_pair_holds_the_pair_not_a_name():
+    arm = PopulationSpec.swap(3, "a")
+    assert arm.base == arm.bases == ("matched_base", "matched_deadline")
+    assert PopulationSpec.sized("mixed_x", 1).bases == ("mixed_x",)
+    assert index_of([arm])["matched_swap3_a"] is arm

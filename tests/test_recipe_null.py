@@ -15,8 +15,9 @@ from typing import get_args
 import pandas as pd
 import pytest
 
-from popnavshift.engine.study import NullDesign, load_study
-from popnavshift.populations.identity import NULL_KINDS
+from popnavshift.design.part import NullDesign
+from popnavshift.design.study import load_study
+from popnavshift.populations.identity import NULL_KINDS, Role
 from recipes import package_with, run_with
 
 ARCHITECTURE = Path(__file__).resolve().parents[1] / "docs" / "architecture.md"
@@ -25,62 +26,37 @@ REPLICATES = 4  # a placebo of the prediction t needs 3 other replicates
 EPISODES = {"scenes": ["sidewalk"], "widths": [1.8], "densities": [0.06],
             "robot_speeds": [1.0], "variants": [1]}
 
-#: "A population identity": a role of PopulationSpec with its NULL_KINDS entry, its members
-#: in membership, its NullDesign kind and its pairing in headline_designs.
+#: "A population identity": a role of PopulationSpec and its NULL_KINDS entry (its name, its
+#: replicate k, its members drawn from the study's records, its pairing, its labels).
 NULL_RECIPE = {
     "populations/identity.py": [
         ('Role = Literal["observed", "swap_null", "sized_null", "half"]',
          'Role = Literal["observed", "swap_null", "sized_null", "half", "relabel_null"]'),
-        ('            return f"{self.base}_half_{self.arm}"\n',
-         '            return f"{self.base}_half_{self.arm}"\n'
-         '        if self.role == "relabel_null":\n'
-         '            return f"{self.base}_relabel{self.replicate}_{self.arm}"\n'),
-        ("#: Every null design kind, by its name in a study file.\n",
+        ("#: Every null design kind, by its name in a study file",
          '''def relabelled(k: int, pair: tuple[str, ...]) -> tuple[PopulationSpec, ...]:
-    """Arms a and b of relabelling k of a pair of populations."""
+    """Arms a and b of relabelling k of a pair of populations (its base: the pair)."""
     if len(pair) != 2:
         raise ValueError(f"a relabel null stands in for two populations, got {list(pair)}")
-    return tuple(PopulationSpec(f"{pair[0]}_vs_{pair[1]}", "relabel_null", k, arm)
-                 for arm in ARMS)
+    return tuple(PopulationSpec(tuple(pair), "relabel_null", k, arm) for arm in ARMS)
 
 
-#: Every null design kind, by its name in a study file.
-'''),
-        ('"size-matched random subsets of mixed"),\n',
-         '"size-matched random subsets of mixed"),\n'
-         '    "relabel": NullKind("relabel_null", relabelled,\n'
-         '                        lambda spec: tuple(spec.base.split("_vs_")),\n'
-         '                        "random relabellings of the pooled pair"),\n'),
-    ],
-    "populations/build.py": [
-        ('        if spec.role == "sized_null":\n',
-         '''        if spec.role == "relabel_null":  # the pair's members pooled, split again
-            first, second = spec.base.split("_vs_")
-            pool = members(KNOWN[first]) + members(KNOWN[second])
-            rng = np.random.default_rng(stable_seed("relabel", seed, spec.base, spec.replicate))
-            order, n = rng.permutation(len(pool)), len(members(KNOWN[first]))
-            return sorted(pool[i] for i in (order[:n] if spec.arm == "a" else order[n:]))
-        if spec.role == "sized_null":
-'''),
-    ],
-    "engine/study.py": [('    kind: Literal["swap", "sized"]\n',
-                         '    kind: Literal["swap", "sized", "relabel"]\n')],
-    "analysis/nulls.py": [
-        ("    ARMS,\n    MATCHED_PAIR,\n", "    ARMS,\n    MATCHED_PAIR,\n    NULL_KINDS,\n"),
-        ('        out["all_pairs"] = (pairs, [sized_pairs(pairs, k, swap=swap) for k in reps])\n',
-         '        out["all_pairs"] = (pairs, relabel_pairs(populations, pairs)\n'
-         '                            or [sized_pairs(pairs, k, swap=swap) for k in reps])\n'),
-        ("", '''
+def pooled_split(spec: PopulationSpec, records: Records) -> Members:
+    """The pair's members pooled and split again at their sizes."""
+    first, second = (records.members(PopulationSpec(p)) for p in spec.bases)
+    pool, n = first + second, len(first)
+    order = records.rng("relabel", spec.bases, spec.replicate).permutation(len(pool))
+    return sorted(pool[i] for i in (order[:n] if spec.arm == "a" else order[n:]))
 
-def relabel_pairs(populations: Collection[PopulationSpec], pairs: Sequence[tuple[str, str]]
-                  ) -> list[list[tuple[str, str]]]:
-    """One list per relabelling k the study ran for every one of ``pairs``: its arms."""
-    reps = sorted({s.replicate for s in populations if s.role == "relabel_null"})
-    designs = [[tuple(s.name for s in NULL_KINDS["relabel"].replicate(k, pair))
-                for pair in pairs] for k in reps]
-    have = {s.name for s in populations}
-    return [d for d in designs if {p for pair in d for p in pair} <= have]
-'''),
+
+#: Every null design kind, by its name in a study file'''),
+        ('        listed="size-matched random subsets of mixed (one per cohort)"),\n',
+         '        listed="size-matched random subsets of mixed (one per cohort)"),\n'
+         '    "relabel": NullKind(\n'
+         '        "relabel_null",\n'
+         '        lambda s: f"{s.base[0]}_{s.base[1]}_relabel{s.replicate}_{s.arm}",\n'
+         '        relabelled, pooled_split, lambda pair, k: relabelled(k, pair),\n'
+         '        "random relabellings of the pooled pair",\n'
+         '        "a crossover among relabel subsets"),\n'),
     ],
 }
 
@@ -115,7 +91,7 @@ def robust_test(observed: float, null: np.ndarray, *, alpha: float = ALPHA) -> d
 
 
 def relabel_name(k: int, arm: str) -> str:
-    return f"{PAIR[0]}_vs_{PAIR[1]}_relabel{k}_{arm}"
+    return f"{PAIR[0]}_{PAIR[1]}_relabel{k}_{arm}"
 
 
 def paper_design() -> dict:
@@ -126,9 +102,12 @@ def paper_design() -> dict:
 
 
 def test_every_null_kind_is_a_study_kind_and_a_role():
-    """A kind declared in NULL_KINDS and not in NullDesign (or the other way) fails here."""
-    assert get_args(NullDesign.model_fields["kind"].annotation) == tuple(NULL_KINDS)
-    assert len({k.role for k in NULL_KINDS.values()}) == len(NULL_KINDS)
+    """A study's null design kinds are those of NULL_KINDS, each with a role of its own."""
+    assert [NullDesign(kind=k).kind for k in NULL_KINDS] == list(NULL_KINDS)
+    with pytest.raises(ValueError, match="unknown null design kind 'swapp'.*did you mean 'swap'"):
+        NullDesign(kind="swapp")
+    roles = [k.role for k in NULL_KINDS.values()]
+    assert len(set(roles)) == len(roles) and set(roles) <= set(get_args(Role))
 
 
 @pytest.mark.parametrize("title,recipe", [("A population identity", NULL_RECIPE),
@@ -162,14 +141,14 @@ import json
 from pathlib import Path
 from popnavshift.cli.study import calibrate
 from popnavshift.engine.runner import run_study
-from popnavshift.engine.study import load_study, study_from_dict
-from popnavshift.progress import console
+from popnavshift.cli.app import stdout
+from popnavshift.design.study import load_study, study_from_dict
 from popnavshift.report import build_report
 folder = Path({str(folder)!r})
 run_study(study_from_dict({study!r}), folder, workers=1, show_progress=False)
 build_report(folder, n_boot=20, replays=0)
-console.width = 200
-with console.capture() as printed:
+stdout.width = 200
+with stdout.capture() as printed:  # calibrate's tables are its output: stdout
     calibrate(folder)
 {inspect.getsource(paper_design)}
 print(json.dumps({{"calibrate": printed.get(), "paper": paper_design()}}))

@@ -47,7 +47,7 @@ def study_script(folder, study) -> str:
 from pathlib import Path
 from popnavshift.dictionary import data_markdown
 from popnavshift.engine.runner import run_study
-from popnavshift.engine.study import load_study, study_from_dict
+from popnavshift.design.study import load_study, study_from_dict
 from popnavshift.evaluate.run import BASELINES
 from popnavshift.paper import PAPER_CONTROLLERS, PAPER_POPULATIONS
 from popnavshift.report import build_report
@@ -110,10 +110,10 @@ def test_the_recipe_for_a_population(recipe_study):
 
 
 def test_a_part_role_is_declared_named_or_read_from_its_content():
-    from popnavshift.engine.study import study_from_dict
+    from popnavshift.design.study import study_from_dict
     from popnavshift.errors import ConfigError
 
-    parts = {"grid": {}, "profile_sets": {"mapping": ["A", "B"]},
+    parts = {"grid": {"role": "main"}, "profile_sets": {"mapping": ["A", "B"]},
              "robots": {"backends": ["orca", "hl"]}, "blocks": {"mapping": ["A", "A~shuffle"]},
              "second": {"mapping": "A~rule-2"}, "sized": {"null_design": {"kind": "sized"}},
              "mine": {"role": "mapping", "mapping": "A"}}
@@ -123,6 +123,9 @@ def test_a_part_role_is_declared_named_or_read_from_its_content():
         "second": "respondent", "sized": "other", "mine": "other"}
     named = study_from_dict({"name": "t", "parts": {"main": {}, "backend": {"mapping": "B"}}})
     assert named.role("backend") == "backend"  # a role's name is its role, as in paper.yaml
+    assert named.main_part()[0] == "main"
+    first = study_from_dict({"name": "t", "parts": {"grid": {}, "other": {"mapping": "B"}}})
+    assert first.role("grid") == "other" and first.main_part() is None  # never by position
     with pytest.raises(ConfigError, match="more than one part has role mapping"):
         study_from_dict({"name": "t", "parts": parts})
     with pytest.raises(ConfigError, match="role"):
@@ -132,11 +135,12 @@ def test_a_part_role_is_declared_named_or_read_from_its_content():
 #: "A study part": any name; its role declared or read from its content.
 @pytest.mark.slow
 def test_a_renamed_part_keeps_its_report_section(tmp_path):
+    from popnavshift.design.study import study_from_dict
     from popnavshift.engine.runner import run_study
-    from popnavshift.engine.study import study_from_dict
     from popnavshift.report import build_report
 
-    parts = {"grid": {"populations": ["mixed", "high_caution"], "episodes": EPISODES},
+    parts = {"grid": {"populations": ["mixed", "high_caution"], "episodes": EPISODES,
+                      "role": "main"},  # a main part is declared or named, never first
              "profile_sets": {"populations": ["mixed", "high_caution"], "mapping": ["A", "B"],
                               "episodes": EPISODES}}
     study = study_from_dict({"name": "renamed", "seed": 0, "matched_n": 60, "parts": parts,
@@ -167,7 +171,7 @@ def test_the_recipe_for_a_paper_finding(recipe_study):
     assert judged["estimate"] == pytest.approx(gap)
     assert bool(judged["holds"]) == (gap > 0)
     html = section(recipe_study, "summary")
-    assert "Creep has a lower mean delay than reactive" in html
+    assert "Creep has a lower mean delay than Reactive" in html
     assert f"reactive − creep mean delay [s] = {gap:.2f}" in html
 
 
@@ -232,25 +236,28 @@ def test_the_recipe_for_a_paper_figure(recipe_study):
 
 
 def test_the_stored_study_keeps_its_parts_in_order(tmp_path):
-    """The manifest's JSON sorts its keys; the part order it stores keeps the main part
-    of a study that names none (its first), so a renamed main part stays the main one, and
-    a manifest of an earlier version of the study is written again by the next run."""
+    """The manifest's JSON sorts its keys; the part order it stores keeps the order of the
+    study file (a run several parts plan belongs to the first), the main part is the one
+    declared whatever the order, and a manifest of an earlier version of the study is
+    written again by the next run."""
     import json
 
-    from popnavshift.engine.folder import _study
+    from popnavshift.design.study import study_from_dict
     from popnavshift.engine.runner import _manifest_describes
-    from popnavshift.engine.study import study_from_dict
+    from popnavshift.read.folder import stored_study
 
-    study = study_from_dict({"name": "t", "parts": {"zgrid": {}, "a_null": {
+    study = study_from_dict({"name": "t", "parts": {"zgrid": {"role": "main"}, "a_null": {
         "null_design": {"kind": "swap", "replicates": 2}}}})
     stored = json.loads(json.dumps(study.model_dump(mode="json"), sort_keys=True))
     assert list(stored["parts"]) == ["a_null", "zgrid"]
     manifest = {"study_config": stored, "part_order": list(study.parts)}
-    assert _study(manifest).role("zgrid") == "main"
-    assert _study({"study_config": stored}).role("zgrid") != "main"  # why it is stored
+    assert list(stored_study(manifest).parts) == ["zgrid", "a_null"]
+    assert list(stored_study({"study_config": stored}).parts) == ["a_null", "zgrid"]
+    for order in (manifest, {"study_config": stored}):
+        assert stored_study(order).main_part()[0] == "zgrid"
     (tmp_path / "manifest.json").write_text(json.dumps(
         {**manifest, "config_hash": study.config_hash()}))
     assert _manifest_describes(tmp_path, study)
-    renamed = study_from_dict({"name": "t", "parts": {"grid": {}, "a_null": {
+    renamed = study_from_dict({"name": "t", "parts": {"grid": {"role": "main"}, "a_null": {
         "null_design": {"kind": "swap", "replicates": 2}}}})
     assert not _manifest_describes(tmp_path, renamed)

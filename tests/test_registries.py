@@ -7,10 +7,12 @@ import pandas as pd
 import pytest
 
 from example_controller import EXAMPLE, USER_MODULE, install_example
-from popnavshift.engine.plan import Batch, Run, batches
+from popnavshift.controller_ids import controller_id, parse_controller_id
+from popnavshift.design.plan import Run
+from popnavshift.design.study import study_from_dict
+from popnavshift.engine.batches import Batch, batches
 from popnavshift.engine.run_inputs import run_inputs
 from popnavshift.engine.stamps import code_stamps
-from popnavshift.engine.study import study_from_dict
 from popnavshift.engine.worker import Context, run_batch
 from popnavshift.episodes import assign_slots, get_episode
 from popnavshift.errors import ConfigError, UnknownNameError
@@ -19,7 +21,6 @@ from popnavshift.sim.backends import BACKENDS
 from popnavshift.sim.check import check_controller
 from popnavshift.sim.controllers import CONTROLLERS
 from popnavshift.sim.controllers.navground_type import BehaviorClass
-from popnavshift.sim.controllers.registry import controller_id, parse_controller_id
 from popnavshift.sim.run import ControllerError, failed_result, simulate
 from popnavshift.tables import check_table
 

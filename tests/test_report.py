@@ -24,8 +24,8 @@ from popnavshift.analysis import (
     reversal_table,
 )
 from popnavshift.analysis.study import analyse
-from popnavshift.engine.folder import main_grid, read_study_folder
 from popnavshift.errors import InputError
+from popnavshift.read.folder import main_grid, open_study
 from popnavshift.report import build_report
 from report_study import N_BOOT
 
@@ -126,7 +126,7 @@ def test_sections_appear_in_order_sanity_checks_before_any_score(quick):
     assert "the noise floor was not run" in html  # the quick study has no split halves
     from popnavshift.report.page import SECTIONS
 
-    assert ids == [i for i, _ in SECTIONS]  # the page is its table of sections, in order
+    assert ids == [s.id for s in SECTIONS]  # the page is its table of sections, in order
 
 
 # --- Numbers equal a recomputation from the Parquet tables --------------------------------------
@@ -175,7 +175,7 @@ def test_table_two_and_delay_change_equal_recomputation(quick):
 
 
 def test_findings_are_paper_findings_of_the_recomputed_tables(quick):
-    study = read_study_folder(quick)
+    study = open_study(quick)
     runs, peds, _ = main_grid(study)
     a = analyse(runs, peds, rng_seed=0, n_boot=N_BOOT)
     t = a.tables
@@ -190,7 +190,7 @@ def test_findings_are_paper_findings_of_the_recomputed_tables(quick):
 
 
 def test_same_seed_same_intervals_and_another_seed_others(quick):
-    runs, peds, _ = main_grid(read_study_folder(quick))
+    runs, peds, _ = main_grid(open_study(quick))
     first = analyse(runs, peds, rng_seed=3, n_boot=100).tables["reversals"]
     again = analyse(runs, peds, rng_seed=3, n_boot=100).tables["reversals"]
     other = analyse(runs, peds, rng_seed=4, n_boot=100).tables["reversals"]
@@ -222,7 +222,7 @@ def test_a_run_that_cannot_be_resimulated_is_reported_not_fatal(quick, tmp_path,
         raise PopNavShiftError("controller raised")
 
     monkeypatch.setattr(replays, "resimulate", fail)
-    study = read_study_folder(quick)
+    study = open_study(quick)
     runs, peds, _ = main_grid(study)
     a = analyse(runs, peds, n_boot=10)
     reps = replays.write_replays(study, a, runs, tmp_path, 1)

@@ -17,9 +17,9 @@ from forked_cli import run_cli
 from popnavshift.analysis.evidence import test_comparisons as run_tests
 from popnavshift.analysis.nulls import headline_designs
 from popnavshift.analysis.verdicts import decide
-from popnavshift.engine.folder import read_study_folder
+from popnavshift.design.study import study_from_dict
 from popnavshift.engine.runner import run_study
-from popnavshift.engine.study import study_from_dict
+from popnavshift.read.folder import open_study
 from popnavshift.report import build_report
 
 pytestmark = pytest.mark.slow  # each test reads a study run and reported once (~1 min)
@@ -110,6 +110,7 @@ def test_calibrate_prints_every_rules_false_positive_rate(study):
     for rule in ("prediction t", "exact permutation", "crossover test", "episode-only"):
         assert rule in text, rule
     assert "no verdict rule claims more than its nominal level" in text
+    assert "prediction t" in out.stdout  # the tables are the output: `calibrate S > f` keeps them
     empty = run_cli("calibrate", str(study / "nowhere"))
     assert empty.returncode == 2 and "Traceback" not in empty.stderr
 
@@ -121,7 +122,7 @@ def test_the_headline_is_recomputed_from_the_parquet_tables(study):
     pops = ["matched_base", "matched_deadline"] + [f"matched_swap{k}_{a}" for k in (1, 2, 3)
                                                    for a in "ab"]
     r, p = runs[runs["population"].isin(pops)], peds[peds["population"].isin(pops)]
-    index = read_study_folder(study).population_specs
+    index = open_study(study).population_specs
     designs = {"matched": headline_designs([index[p] for p in pops], obs)["matched"]}
     got = run_tests(r, p, designs, obs, rng=np.random.default_rng([0, 0]), n_boot=N_BOOT)
     table = pd.read_csv(study / "report" / "tables" / "evidence_headline.csv")

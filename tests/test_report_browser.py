@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from popnavshift.engine.study import study_from_dict
+from popnavshift.design.study import study_from_dict
 from report_study import STUDY
 
 CANDIDATES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
@@ -205,7 +205,7 @@ COMPARE_PROBE = """JSON.stringify({
 def test_the_compare_page_loads_without_console_errors(tmp_path):
     from popnavshift.evaluate.compare import Comparison, compare_table
     from popnavshift.evaluate.compare_page import write_comparison
-    from popnavshift.evaluate.run import EVALUATE_DIR
+    from popnavshift.read.access import EVALUATE_DIR
     from synth_study import no_effect, synthetic_study
 
     ctrls = ("reactive", "HRVO", "<b>odd & name</b>")  # escaped, not markup
@@ -234,6 +234,7 @@ def test_the_card_loads_and_shows_its_safety_table(tmp_path):
 
     from popnavshift.evaluate.card import card_tables
     from popnavshift.evaluate.card_page import write_card
+    from popnavshift.outputs import FileSet
     from synth_study import no_effect, synthetic_study
 
     runs, peds = synthetic_study({"p1": no_effect, "p2": no_effect}, n_cells=6, variants=3)
@@ -244,7 +245,9 @@ def test_the_card_loads_and_shows_its_safety_table(tmp_path):
             "executed": 0, "n_runs": 36, "n_errors": 0, "n_cells": 6, "n_populations": 2,
             "backends": "orca", "mappings": "A", "replay_note": "", "n_boot": 50, "seed": 0,
             "base_folder": "-", "seed_sets": 1, "n_used": len(runs), "safety_threshold": None}
-    html, _ = write_card(card, meta, tmp_path, None)
+    with FileSet(tmp_path, "card.json") as files:
+        html, _ = write_card(card, meta, files, None)
+        files.commit({})
     dom, problems = load(html, COMPARE_PROBE, tmp_path / "profile")
     assert problems == []
     assert dom["scripts"] == 0 and dom["rows"] > 10

@@ -4,16 +4,16 @@ parsing the ``mapping`` label."""
 
 from __future__ import annotations
 
+from pathlib import Path
+from types import SimpleNamespace
+
 import pandas as pd
 
 from popnavshift.analysis import paper_reference as paper
+from popnavshift.analysis.study import Analysis
 from popnavshift.populations.perturb import ProfileSet
-from popnavshift.report.robustness import (
-    backend_section,
-    mapping_section,
-    respondent_section,
-    structure_section,
-)
+from popnavshift.report.blocks import Page
+from popnavshift.report.robustness import BACKEND, MAPPING, RESPONDENT, STRUCTURE
 
 
 def rates(labels: list[str], metric: str = "mean_delay") -> pd.DataFrame:
@@ -33,9 +33,9 @@ def table_rows(section) -> list[list[str]]:
 
 
 def sections(tables):
-    return {s.id: s for s in (mapping_section(tables, ""), structure_section(tables, ""),
-                              backend_section(tables, ""),
-                              respondent_section(tables, "", "the rule surrogate"))}
+    study = SimpleNamespace(manifest={"study_config": {"respondent2": {"name": "rule"}}})
+    page = Page(study, Analysis(selection="", tables=tables), {}, Path("."), {})  # type: ignore[arg-type]
+    return {s.id: s.render(page) for s in (MAPPING, STRUCTURE, BACKEND, RESPONDENT)}
 
 
 def test_structure_rows_are_named_and_matched_to_the_paper_by_their_columns():

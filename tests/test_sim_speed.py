@@ -10,7 +10,8 @@ import pandas as pd
 import pytest
 
 import popnavshift.sim.loop as loop_module
-from popnavshift.engine.plan import Batch, Run
+from popnavshift.design.plan import Run
+from popnavshift.engine.batches import Batch
 from popnavshift.engine.worker import Context, run_batch
 from popnavshift.episodes import assign_slots, get_episode
 from popnavshift.sim.quiet import NotQuiet

@@ -8,8 +8,9 @@ import json
 from dataclasses import replace
 
 from forked_cli import run_cli
+from popnavshift.design.specs import PersonaSource
 from popnavshift.engine.runner import run_stages
-from popnavshift.pipeline import PersonaSource, PopulationSettings
+from popnavshift.pipeline import PopulationSettings
 
 SETTINGS = PopulationSettings(PersonaSource(n=120), seed=3, matched_n=40,
                               mappings=("A", "B"))

@@ -15,8 +15,9 @@ from popnavshift.evaluate.card import card_tables
 from popnavshift.evaluate.card_page import card_figure
 from popnavshift.evaluate.compare import Comparison, compare_table
 from popnavshift.evaluate.compare_page import compare_figure
+from popnavshift.evaluate.robustness import robustness_tables
 from popnavshift.report.figures import plot_tradeoff
-from popnavshift.viz.style import FIXED, controller_style
+from popnavshift.viz.style import FIXED, controller_style, controller_styles
 from synth_study import no_effect, synthetic_study
 
 
@@ -51,22 +52,40 @@ def synthetic():
                            controllers=("reactive", "HRVO", "my_pkg:Mine"))
 
 
+def _card(runs, peds, controller, baselines, rng):
+    rob = robustness_tables(runs, peds, controller, baselines, {}, ["p1", "p2"], n_boot=10)
+    return card_tables(runs, peds, controller, baselines, rob, rng=rng, n_boot=20)
+
+
 def test_a_controller_looks_the_same_on_two_cards_and_on_the_compare_page(synthetic):
     runs, peds = synthetic
     rng = np.random.default_rng(0)
-    first = card_figure(card_tables(runs, peds, "HRVO", ("reactive", "my_pkg:Mine"), rng=rng,
-                                    n_boot=20))
-    second = card_figure(card_tables(runs, peds, "my_pkg:Mine", ("HRVO", "reactive"), rng=rng,
-                                     n_boot=20))
+    first = card_figure(_card(runs, peds, "HRVO", ("reactive", "my_pkg:Mine"), rng))
+    second = card_figure(_card(runs, peds, "my_pkg:Mine", ("HRVO", "reactive"), rng))
     a, b = _drawn(first), _drawn(second)
     assert set(a) == set(b) == {"reactive", "HRVO", "my_pkg:Mine"}
     assert a == b  # evaluated on one card, a baseline on the other: same colour, same marker
-    assert a["HRVO"][0] == controller_style("HRVO").colour != a["my_pkg:Mine"][0]
-    verdicts = {c: {"label": "inconclusive", "safety": []} for c in a}
+    styles = controller_styles(["reactive", "HRVO", "my_pkg:Mine"])
+    assert a["HRVO"][0] == styles["HRVO"].colour != a["my_pkg:Mine"][0]
+    verdicts = {c: {"robustness": {"label": "undecided", "text": "", "decide": "", "row": {}},
+                    "safety": {"label": "safe", "text": "", "findings": [], "threshold": 0.01}}
+                for c in a}
     table, per_pop = compare_table(runs, peds, ["my_pkg:Mine", "HRVO", "reactive"], verdicts)
     page = compare_figure(Comparison(("my_pkg:Mine", "HRVO", "reactive"), table, per_pop, {},
                                      verdicts, None, None))  # type: ignore[arg-type]
     assert _drawn(page) == a
+
+
+def test_every_row_of_a_leaderboard_has_its_own_colour_and_marker():
+    """navground's behaviours beside the paper's three: no two share a colour or a marker
+    (ORCA and SocialForce drew the same pair by hash alone), whatever their order."""
+    names = ["reactive", "early_yield", "robot_orca", "Dummy", "HRVO", "ORCA", "HL",
+             "SocialForce", "examples.go_to_goal:GoToGoal", "my_pkg:Mine"]
+    styles = controller_styles(names)
+    assert len({s.colour for s in styles.values()}) == len(names)
+    assert len({s.marker for s in styles.values()}) == len(names)
+    assert controller_styles(names[::-1]) == styles
+    assert styles["robot_orca"] == FIXED["robot_orca"]
 
 
 def test_the_report_figures_use_the_same_colours():

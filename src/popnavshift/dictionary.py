@@ -2,12 +2,14 @@
 
 ``docs/data.md`` is exactly :func:`data_markdown` (``popnavshift describe --markdown``
 writes it; a test keeps them equal), so the documentation cannot drift from the
-tables :func:`popnavshift.tables.check_table` enforces.
+tables :func:`popnavshift.tables.check_table` enforces, nor from the report's tables
+declared in :data:`popnavshift.result_tables.RESULT_TABLES`.
 """
 
 from __future__ import annotations
 
 from .personas.table import PERSONAS
+from .result_tables import RESULT_TABLES, TABLES_DIR
 from .tables import DTYPES, SPECS, Column, TableSpec
 
 #: the tables of a study folder, in pipeline order (the personas table is declared with
@@ -66,6 +68,12 @@ tables = popnavshift.results("study")  # name → DataFrame, e.g. tables["eviden
 cards = popnavshift.cards("study")  # card folder → {"verdict": …, "safety_rates": …, …}
 ```
 
+What they read is checked against the manifest its writer left (`report/stamp.json`, each
+card's `card.json`: every file's sha256): a report or card that is damaged, unfinished or
+edited since it was written raises `popnavshift.errors.InputError` naming the file, as a
+damaged table or manifest does for `load`; a card or an evaluation made for another
+configuration of the study is left out with a warning.
+
 Nothing needs parsing out of an id or a label: `seed_set` says which episode draw a
 run used (the `…@s<k>` episodes); `profile_set` how its profiles were made (the `A~…`
 profile sets), spelt out as `profile_base` (the mapping), `perturbation` and
@@ -121,8 +129,31 @@ def table_markdown(spec: TableSpec) -> str:
     return "\n".join(lines) + "\n"
 
 
+REPORT_HEADER = f"""\
+## The report's tables
+
+`popnavshift report` writes each table below as `report/{TABLES_DIR}/<table>.csv` (full
+precision, no index) and links it from the section that shows it (by its id in the
+page: `index.html#<section>`); `popnavshift.results("study")` returns them by name. A
+table the study cannot compute (no null part, one seed set, no robustness part, …) is not
+written, and its section says why. *key* lists the columns that identify a row.
+"""
+
+
+def report_markdown() -> str:
+    """The Markdown section of the report's tables, from their declaration."""
+    lines = [REPORT_HEADER, "| table | section | one row per | key | columns |",
+             "|---|---|---|---|---|"]
+    for t in RESULT_TABLES:
+        cells = (f"`{t.name}`", f"`{t.section}`", t.doc.removeprefix("one "),
+                 ", ".join(f"`{k}`" for k in t.key), t.columns)
+        lines.append("| " + " | ".join(_cell(x) for x in cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def data_markdown(extra: str = "") -> str:
     """The whole of docs/data.md."""
     sections = [HEADER, extra] if extra else [HEADER]
     sections += [table_markdown(SPECS[name]) for name in STUDY_TABLES]
+    sections.append(report_markdown())
     return "\n".join(sections)

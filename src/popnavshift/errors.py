@@ -39,13 +39,23 @@ class UnknownNameError(ConfigError):
 
     def __init__(self, kind: str, name: str, known: Iterable[str]) -> None:
         known = sorted(known)
-        close = difflib.get_close_matches(name, known, n=3)
+        close = close_names(name, known)
         hint = f"did you mean {', '.join(repr(c) for c in close)}?" if close else None
         listed = ", ".join(known) if len(known) <= 12 else (
             f"{', '.join(known[:4])}, … ({len(known)} in all)"
         )
         super().__init__(f"unknown {kind} {name!r}{code_points(name)}; known: {listed}",
                          hint=hint)
+
+
+def close_names(name: str, known: Iterable[str], n: int = 3) -> list[str]:
+    """The ``n`` known names closest to ``name``, ignoring case (``hrvo`` → ``HRVO``,
+    ``Reactve`` → ``reactive``): a name differing only in case comes first."""
+    by_lower: dict[str, list[str]] = {}
+    for k in known:
+        by_lower.setdefault(k.lower(), []).append(k)
+    hits = difflib.get_close_matches(name.lower(), list(by_lower), n=n)
+    return [k for hit in hits for k in by_lower[hit]][:n]
 
 
 class RespondentError(PopNavShiftError):

@@ -11,8 +11,24 @@ that each is registered.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
+
+class Controller(NamedTuple):
+    """A controller of the paper: its registered ``name`` (a study's controller id) and
+    its ``label``, the name the paper gives it, which every page and figure shows."""
+
+    name: str
+    label: str
+
+
 #: the paper's controllers, in its order
-PAPER_CONTROLLERS: tuple[str, ...] = ("reactive", "early_yield", "robot_orca")
+CONTROLLERS: tuple[Controller, ...] = (
+    Controller("reactive", "Reactive"),
+    Controller("early_yield", "Early yielding"),
+    Controller("robot_orca", "Robot-ORCA"),
+)
+PAPER_CONTROLLERS: tuple[str, ...] = tuple(c.name for c in CONTROLLERS)
 #: the paper's eight population conditions (SPEC §5), in its order
 PAPER_POPULATIONS: tuple[str, ...] = (
     "homogeneous",

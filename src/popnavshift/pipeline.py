@@ -15,11 +15,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Any
 
 import pandas as pd
-from pydantic import Field, field_validator
 
+from .design.specs import PersonaSource, RespondentSpec
 from .errors import InputError, RespondentError
 from .io import write_json, write_parquet
 from .personas.load import load_personas
@@ -34,39 +34,6 @@ from .responses.collect import collect_responses
 from .responses.probes import PROBE_SET_HASH
 from .responses.respondent import RESPONDENTS, Respondent
 from .responses.samples import AGGREGATION, aggregate_samples
-from .strict import Count, Strict, Unique
-
-
-class PersonaSource(Strict):
-    """Where the personas come from and how many (a study's ``personas:``)."""
-
-    source: str = "synthetic"
-    n: Count = 600
-    missing: Literal["require", "fill", "error"] = "require"
-    codebook: str | None = None  # release only: codebook file of another layout
-    sources: Annotated[tuple[str, ...] | None, Unique] = None  # release only: sources kept
-    #: release only: check the shards against manifest.json
-    verify_checksums: Annotated[bool, Field(strict=True)] = True
-
-
-class RespondentSpec(Strict):
-    """Who answers the probes (a study's ``respondent:``): a registered respondent, its
-    options and the independent samples per persona and variant."""
-
-    name: str = "rule"
-    options: dict[str, Any] = Field(default_factory=dict)
-    #: independent samples per persona and variant, each sent with its own seed; the
-    #: profiles read their per-item median (docs/method.md), the audit their test–retest
-    samples: int = Field(1, ge=1, le=100)
-
-    @field_validator("options")
-    @classmethod
-    def _no_replicate(cls, v: dict[str, Any]) -> dict[str, Any]:
-        if "replicate" in v:  # it changed only the cache key: a sample that was not one
-            raise ValueError("options.replicate was removed (it changed the cache key, not "
-                             "the request); ask independent samples with `samples: k`, "
-                             "each sent with its own seed")
-        return v
 
 
 @dataclass(frozen=True)
@@ -143,7 +110,11 @@ def respondent_from(name: str, options: dict[str, Any], folder: Path) -> Respond
     opts = dict(options)
     if RESPONDENTS.resolve(name).uses_cache:
         opts.setdefault("cache_path", folder / RESPONSE_CACHE)
-    return RESPONDENTS.make(name, **opts)
+    respondent = RESPONDENTS.make(name, **opts)
+    validate = getattr(respondent, "validate", None)
+    if callable(validate):  # a bad option is named before any table is read or call made
+        validate()
+    return respondent
 
 
 def run_responses(folder: Path, s: PopulationSettings, show_progress: bool = True) -> pd.DataFrame:

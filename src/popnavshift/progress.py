@@ -3,7 +3,7 @@
 On a terminal, a live bar; when stderr is not one (a log file, CI, ``nohup``), a live bar
 would print nothing until the end, so a plain line is printed every
 :data:`PLAIN_EVERY` s instead (:class:`PlainLines`), e.g.
-``probing (openai): 120/400 records, 131 calls, 3 retries, 0 failed``.
+``probing (openai): 120/400 records, 4 in flight, 131 calls, 3 retries, 0 failed``.
 """
 
 from __future__ import annotations
@@ -15,16 +15,9 @@ from contextlib import contextmanager
 
 from rich.console import Console
 from rich.markup import escape
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    TaskProgressColumn,
-    TextColumn,
-    TimeElapsedColumn,
-    TimeRemainingColumn,
-)
 
+# rich.progress is imported by the bars themselves: the command line imports this module
+# before any command, and a bar is only drawn by a command that runs
 console = Console(stderr=True)
 #: seconds between two plain progress lines (stderr not a terminal)
 PLAIN_EVERY = 10.0
@@ -81,6 +74,15 @@ def progress_bar(description: str, total: int, enabled: bool = True, *,
         with PlainLines(description, total, unit, note, every) as lines:
             yield lines.advance
         return
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
     with Progress(
         TextColumn("[bold]{task.description}"),
         BarColumn(),
@@ -104,6 +106,16 @@ def run_progress(total: int, enabled: bool = True) -> Iterator:
         with PlainLines("runs", total, "runs", None, PLAIN_EVERY) as lines:
             yield lines.advance
         return
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TaskProgressColumn,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
     with Progress(
         TextColumn("[bold]runs"),
         BarColumn(),

@@ -12,8 +12,8 @@ Each pluggable kind has one :class:`Registry`, next to its contract:
 1. a registered name (``reactive``, ``orca``, ``rule``, ``A``); an entry may be the
    factory itself or a ``"package.module:Attr"`` string imported on first use;
 2. the name of an entry point in the group ``popnavshift.<kind>s`` of an installed
-   package (looked up again by name on a miss, so a package installed after the
-   first lookup is found);
+   package, imported when first made (looked up again by name on a miss, so a package
+   installed after the first lookup is found);
 3. a Python object ``package.module:Attr``.
 
 A miss raises :class:`UnknownNameError` with a did-you-mean; an object that is not
@@ -28,8 +28,10 @@ import functools
 import importlib
 import inspect
 import re
+import types
+import typing
 from collections.abc import Callable, Iterator
-from importlib.metadata import entry_points
+from importlib.metadata import EntryPoint, entry_points
 from typing import Any, Generic, TypeVar
 
 from .errors import ConfigError, UnknownNameError
@@ -113,12 +115,13 @@ class Registry(Generic[T]):
         return _add(factory) if factory is not None else _add
 
     def _load_entry_points(self) -> None:
+        """Add the group's entry points by name; each is imported when first made, so
+        listing the names (a did-you-mean, ``--help``) imports no outside package."""
         if self._loaded_entry_points:
             return
         self._loaded_entry_points = True
         for ep in entry_points(group=self.group):
-            if ep.name not in self._entries:
-                self._entries[ep.name] = self._load_entry_point(ep)
+            self._entries.setdefault(ep.name, ep)
 
     def _load_entry_point(self, ep: Any) -> Any:
         try:
@@ -134,18 +137,25 @@ class Registry(Generic[T]):
     def get(self, name: str) -> Any:
         """The entry registered as ``name``, loading an entry point of that name installed
         since the group was first read (raises UnknownNameError with a hint)."""
-        self._load_entry_points()
-        if name not in self._entries:
-            for ep in entry_points(group=self.group, name=name):
-                self._entries[name] = self._load_entry_point(ep)
-                break
-        try:
-            entry = self._entries[name]
-        except KeyError:
-            raise UnknownNameError(self.kind, name, self._entries) from None
+        self.check_name(name)
+        entry = self._entries[name]
+        if isinstance(entry, EntryPoint):  # an outside package's, imported now
+            entry = self._entries[name] = self._load_entry_point(entry)
         if isinstance(entry, str):  # "package.module:Attr", imported now
             entry = self._entries[name] = load_object(entry, self.kind)
         return entry
+
+    def check_name(self, name: str) -> None:
+        """UnknownNameError (with a did-you-mean, case aside) unless ``name`` is registered
+        or an entry point of the group, one installed since the group was first read
+        included. Imports nothing: a command checks its names before its heavy work."""
+        self._load_entry_points()
+        if name not in self._entries:
+            for ep in entry_points(group=self.group, name=name):
+                self._entries[name] = ep
+                break
+        if name not in self._entries:
+            raise UnknownNameError(self.kind, name, self._entries)
 
     def resolve(self, spec: str) -> Any:
         """The registered entry, entry point or ``package.module:Attr`` object ``spec``
@@ -189,7 +199,7 @@ def call_checked(kind: str, name: str, factory: Callable[..., T], kwargs: dict) 
     except (TypeError, ValueError):  # builtins without a signature: just call
         return factory(**kwargs)
     try:
-        signature.bind(**kwargs)
+        bound = signature.bind(**kwargs)
     except TypeError:
         accepted = [
             p
@@ -203,7 +213,63 @@ def call_checked(kind: str, name: str, factory: Callable[..., T], kwargs: dict) 
             f"{', '.join(accepted) or 'none'}",
             hint=f"did you mean {close[0]!r}?" if close else None,
         ) from None
+    check_types(kind, name, factory, signature, bound.arguments)
     return factory(**kwargs)
+
+
+#: the simple annotations a parameter's value is checked against (:func:`check_types`), and
+#: the words of a message
+_SIMPLE: dict[Any, str] = {int: "an integer", float: "a number", str: "a text",
+                           bool: "true or false", type(None): "null"}
+
+
+def check_types(kind: str, name: str, factory: Callable, signature: inspect.Signature,
+                given: dict[str, Any]) -> None:
+    """ConfigError when a value in ``given`` does not match its parameter's simple
+    annotation (``int``, ``float``, ``str``, ``bool``, ``None`` or a union of them: a YAML
+    date, a list or a boolean where a number is expected), here rather than deep in a
+    stage that already ran. Other annotations are the factory's to check."""
+    for param, value in given.items():
+        p = signature.parameters.get(param)
+        if p is None or p.kind is p.VAR_KEYWORD:
+            continue
+        allowed = _simple_types(_annotation(factory, p.annotation))
+        if allowed and not _matches(value, allowed):
+            words = " or ".join(dict.fromkeys(_SIMPLE[t] for t in allowed))
+            raise ConfigError(f"{kind} {name!r}: parameter {param!r} must be {words}; got "
+                              f"{value!r}")
+
+
+def _annotation(factory: Callable, annotation: Any) -> Any:
+    """``annotation``, evaluated in the factory's module when it is a string (postponed
+    annotations, as ``typing.get_type_hints`` does); ``inspect.Parameter.empty`` (not
+    checked) when it cannot be."""
+    if not isinstance(annotation, str):
+        return annotation
+    module = inspect.getmodule(factory)
+    try:
+        return eval(annotation, dict(vars(module)) if module else {})  # noqa: S307
+    except Exception:  # a name the module does not hold at run time: not checked
+        return inspect.Parameter.empty
+
+
+def _simple_types(annotation: Any) -> tuple[type, ...]:
+    """The simple types ``annotation`` allows; () when it is anything else (or none)."""
+    if annotation is None or annotation is inspect.Parameter.empty:
+        return ()
+    members = typing.get_args(annotation) if isinstance(
+        annotation, types.UnionType) or typing.get_origin(annotation) is typing.Union else (
+        annotation,)
+    members = tuple(type(None) if m is None else m for m in members)
+    return members if members and all(m in _SIMPLE for m in members) else ()
+
+
+def _matches(value: Any, allowed: tuple[type, ...]) -> bool:
+    if isinstance(value, bool):  # a bool is an int to Python, never to a study file
+        return bool in allowed
+    if isinstance(value, int) and float in allowed:
+        return True
+    return isinstance(value, tuple(t for t in allowed if t is not bool))
 
 
 def _signature(factory: Callable) -> inspect.Signature:

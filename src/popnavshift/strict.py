@@ -1,6 +1,6 @@
 """Strict typed settings: the pydantic base and field types every user setting uses.
 
-A study file (:mod:`popnavshift.engine.study`) and the stage commands' options
+A study file (:mod:`popnavshift.design.study`) and the stage commands' options
 (:class:`popnavshift.pipeline.PopulationSettings`) are validated by the same models, so a
 value refused in one is refused in the other. Unknown keys are errors and models are
 frozen.

@@ -101,11 +101,17 @@ _IDENTITY = (
          "1", nullable=True, missing=_NOT_TOLD),
     _col("server_build", "str", "the server's build (llama.cpp /props build_info)",
          nullable=True, missing=_NOT_TOLD),
+    _col("model_sha256", "str", "sha256 of the model file, as the user gave it "
+         "(respondent option model_sha256)", nullable=True, missing="not given"),
+    _col("model_canaries", "str", "behavioural fingerprint of the served model: sha256 of "
+         "its answers to the fixed canary prompts at temperature 0 (docs/llm.md)",
+         nullable=True, missing="not measured (fingerprint off, a server that could not "
+         "be asked, or one that answers the canaries differently each time)"),
 )
 #: the identity columns a respondent fills from what its server says of the model, once
 #: per run (:func:`popnavshift.responses.collect.served_details`)
 IDENTITY_COLUMNS: tuple[str, ...] = ("model_file", "model_quant", "model_size", "model_params",
-                                     "server_build")
+                                     "server_build", "model_sha256", "model_canaries")
 RESPONSES = declare(
     "responses",
     (
@@ -213,6 +219,8 @@ EPISODES = declare(
 RUN_KEY: tuple[str, ...] = ("episode", "population", "controller", "backend", "mapping")
 NO_ROBOT = "none"
 """The ``controller`` value of a no-robot baseline run."""
+NO_ROBOT_LABEL = "no robot"
+"""How a page names :data:`NO_ROBOT`."""
 #: how a run's profile set was made, as columns (values:
 #: :meth:`popnavshift.populations.perturb.ProfileSet.columns`)
 PROFILE_SET_COLUMNS: tuple[str, ...] = (

@@ -298,7 +298,8 @@ def paired(responses: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
 def manipulation(responses: pd.DataFrame, *, rng: np.random.Generator,
                  n_boot: int = 1000) -> pd.DataFrame:
     """The matched intervention's paired shift: one row per block item (``shift``, the
-    mean deadline − baseline answer, with its 95% bootstrap interval over personas,
+    mean deadline − baseline answer, ``sd`` of the paired shifts, with its 95% bootstrap
+    interval over personas,
     ``up`` and ``down`` shares, ``expected`` sign and the :func:`direction_outcome`) and
     one row ``actions`` (``changed``: share of probe answers that changed). Empty
     without matched pairs."""
@@ -312,7 +313,8 @@ def manipulation(responses: pd.DataFrame, *, rng: np.random.Generator,
         d = dead[col].to_numpy(float) - base[col].to_numpy(float)
         low, high = np.quantile(d[draws].mean(axis=1), [0.025, 0.975])
         sign = DEADLINE_SIGNS[col]
-        rows.append({"target": col, "n": n, "shift": float(d.mean()), "ci_low": float(low),
+        rows.append({"target": col, "n": n, "shift": float(d.mean()),
+                     "sd": float(d.std(ddof=1)) if n > 1 else np.nan, "ci_low": float(low),
                      "ci_high": float(high), "up": float((d > 0).mean()),
                      "down": float((d < 0).mean()),
                      "expected": {1: "+", -1: "−", 0: ""}[sign],

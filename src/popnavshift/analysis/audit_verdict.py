@@ -33,24 +33,30 @@ With several samples per persona, every statistic but the spread (all samples po
 and the distinct rows (sample 0) reads the per-persona aggregate the profiles were built
 from (:func:`popnavshift.responses.samples.aggregate_samples`).
 
-With so few personas that a shuffle alone explains :data:`MAX_NULL_R2` of any answer,
-a respondent without a persona-sensitive answer reads **weak** ("too few personas"),
-not "not persona-sensitive": the test could not have seen it.
+Every check that fails is weighed by its power (:mod:`.audit_power`): the smallest
+effect it could detect at this number of personas and samples, against the effect a
+usable respondent shows. A failure of a check without that power cannot tell a weak
+respondent from a usable one asked too few personas: alone, such failures make the
+verdict **not enough personas to tell** (needs ≈ N), and "not persona-sensitive" is said
+only when the sensitivity test could have seen a usable respondent's dependence.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from ..engine.respondent_tables import MAIN_MAPPING, RespondentTables
 from ..errors import ConfigError
 from ..populations.perturb import ProfileSet
 from ..profiles.mappings import build_profiles
+from ..read.respondent_tables import MAIN_MAPPING, RespondentTables
 from ..responses.samples import aggregate_samples, with_samples
 from ..tables import PARAMS
+from . import audit_power as power
 from .audit import (
     ANSWER_TARGETS,
     LEVEL,
@@ -62,12 +68,16 @@ from .audit import (
     manipulation,
     parameter_targets,
     persona_basis,
+    rho_text,
     sensitivity,
     spread,
 )
+from .audit_power import POWER
 from .audit_retest import HOW_TO_MEASURE, identical_share, retest
 
 USABLE, WEAK, NOT_SENSITIVE = "usable", "weak", "not persona-sensitive"
+#: a check failed that, at this size, would fail for a usable respondent too
+UNDECIDED = "not enough personas to tell"
 ALPHA = 0.05  # family-wise level of the sensitivity tests, per family
 MIN_EXCESS_R2 = 0.05  # R² the persona fields must explain beyond the shuffled null's mean
 MIN_DISTINCT_SHARE = 0.5  # distinct answer rows per distinct persona record, at least
@@ -75,72 +85,138 @@ MIN_URGENCY_SHIFT = LEVEL / 2  # deadline − baseline urgency: half a level, at
 #: test–retest ICC below which a block item, the action score or a motion parameter fails:
 #: Koo & Li (2016) read ICC < 0.5 as poor reliability
 MIN_ICC = 0.5
-#: below this many personas per persona-field column the test cannot see a dependence:
-#: the shuffled null's expected R², columns / (n − 1), would reach this share
-MAX_NULL_R2 = 0.5
 #: the fewest persona shuffles whose smallest p, 1 / (1 + n), reaches the Bonferroni level
 #: of the larger family (16 answers)
 MIN_PERMUTATIONS = math.ceil(ANSWER_TARGETS / ALPHA) - 1
 
 
+@dataclass(frozen=True)
+class Failure:
+    """A check that failed: ``text`` says how; ``needs`` the size at which it could have
+    passed for a usable respondent (:mod:`.audit_power`), None when it could (a failure
+    to believe) or when it is a fact that needs no power (a stuck item, a reversal)."""
+
+    text: str
+    powered: bool = True
+    needs: int | None = None
+    unit: str = "personas"
+
+
 def mark_sensitive(sens: pd.DataFrame) -> pd.DataFrame:
-    """``sens`` (:func:`.audit.sensitivity`) with ``family`` (answer, parameter) and
-    ``sensitive`` (module docstring)."""
+    """``sens`` (:func:`.audit.sensitivity`) with ``family`` (answer, parameter),
+    ``sensitive`` (module docstring), the smallest R² the test detects (``mde``), whether
+    that is a usable respondent's (``powered``) and the personas it would need (``needs``)."""
     family = np.where(sens["kind"] == "parameter", "parameter", "answer")
     size = pd.Series(family).map(pd.Series(family).value_counts()).to_numpy()
     ok = (sens["p_value"] <= ALPHA / size) & (sens["excess"] >= MIN_EXCESS_R2)
-    return sens.assign(family=family, sensitive=ok.fillna(False).astype(bool))
+    n, columns = int(sens["n"].iloc[0]), int(sens["columns"].iloc[0])
+    mde = {m: power.sensitivity_mde(n, columns, ALPHA / m, MIN_EXCESS_R2) for m in set(size)}
+    needs = {m: power.sensitivity_needs(columns, ALPHA / m, MIN_EXCESS_R2) for m in set(size)}
+    found = np.array([mde[m] for m in size])
+    return sens.assign(family=family, sensitive=ok.fillna(False).astype(bool), mde=found,
+                       powered=found <= power.USABLE["sensitivity"],
+                       needs=[needs[m] for m in size])
 
 
 def _signed(x: float) -> str:
     return f"{x:+.2f}"
 
 
+def mark_directions(dirs: pd.DataFrame) -> pd.DataFrame:
+    """``dirs`` with the smallest |ρ| each check detects (``mde``), ``powered``, ``needs``."""
+    if dirs.empty:
+        return dirs
+    mde = np.array([power.rho_mde(int(n)) for n in dirs["n"]])
+    return dirs.assign(mde=mde, powered=mde <= power.USABLE["direction"],
+                       needs=power.rho_needs())
+
+
+def mark_manipulation(manip: pd.DataFrame) -> pd.DataFrame:
+    """``manip`` with, for the urgency shift the verdict reads, the smallest true shift
+    that passes (``mde``), ``powered`` and the matched personas it ``needs``."""
+    if manip.empty:
+        return manip
+    urgency = manip["target"] == "q_urgency"
+    mde = [power.shift_mde(sd, int(n), MIN_URGENCY_SHIFT) if u else np.nan
+           for u, sd, n in zip(urgency, manip["sd"], manip["n"], strict=True)]
+    needs = [power.shift_needs(sd, MIN_URGENCY_SHIFT) if u else None
+             for u, sd in zip(urgency, manip["sd"], strict=True)]
+    return manip.assign(mde=mde, powered=np.array(mde) <= power.USABLE["manipulation"],
+                        needs=needs)
+
+
+def mark_retest(table: pd.DataFrame) -> pd.DataFrame:
+    """``table`` with the smallest true ICC test–retest passes (``mde``), ``powered``,
+    and the records it ``needs`` at the same number of samples."""
+    if table.empty:
+        return table
+    n, k = int(table["records"].iloc[0]), int(table["samples"].iloc[0])
+    mde = power.icc_mde(n, k, MIN_ICC)
+    return table.assign(mde=mde, powered=mde <= power.USABLE["retest"],
+                        needs=power.icc_needs(k, MIN_ICC))
+
+
+def _judged(text: str, row: Any, unit: str = "personas") -> Failure:
+    """A failed check's :class:`Failure`: believed when the check was powered."""
+    if row["powered"]:
+        return Failure(text)
+    needs = row["needs"]
+    known = needs is not None and np.isfinite(needs)
+    return Failure(text, False, int(needs) if known else None, unit)
+
+
 def failures(spread_: pd.DataFrame, sens: pd.DataFrame, dirs: pd.DataFrame,
-             manip: pd.DataFrame, distinct: dict[str, int]) -> list[str]:
-    """What keeps a persona-sensitive respondent from ``usable``, one phrase per check."""
+             manip: pd.DataFrame, distinct: dict[str, int]) -> list[Failure]:
+    """What keeps a persona-sensitive respondent from ``usable``, one per check."""
     out = []
     stuck = spread_[spread_["stuck"]]
     if not stuck.empty:
-        out.append("stuck: " + ", ".join(f"{r.column} ({r.used} of {r.levels} used, "
-                                         f"{r.modal} {100 * r.modal_share:.0f}%)"
-                                         for r in stuck.itertuples()))
+        out.append(Failure("stuck: " + ", ".join(
+            f"{r.column} ({r.used} of {r.levels} used, {r.modal} {100 * r.modal_share:.0f}%)"
+            for r in stuck.itertuples())))
     bad = sens[(sens["kind"] != "action") & ~sens["sensitive"]]
-    if not bad.empty:
-        out.append("not persona-sensitive: " + ", ".join(bad["target"]))
+    for _, group in bad.groupby("powered", sort=False):
+        out.append(_judged("not persona-sensitive: " + ", ".join(group["target"]),
+                           group.iloc[0]))
     if distinct["answer_rows"] < MIN_DISTINCT_SHARE * distinct["persona_records"]:
-        out.append(f"{distinct['answer_rows']} distinct answer rows for "
-                   f"{distinct['persona_records']} distinct persona records")
-    for r in dirs[dirs["outcome"] != "as expected"].itertuples() if not dirs.empty else ():
-        out.append(f"{r.field} → {r.target}: ρ {_signed(r.rho)} [{_signed(r.ci_low)}, "
-                   f"{_signed(r.ci_high)}], expected {r.expected} ({r.outcome})")
+        out.append(Failure(f"{distinct['answer_rows']} distinct answer rows for "
+                           f"{distinct['persona_records']} distinct persona records"))
+    for _, r in dirs[dirs["outcome"] != "as expected"].iterrows() if not dirs.empty else ():
+        text = (f"{r['field']} → {r['target']}: ρ {rho_text(r['rho'], r['ci_low'], r['ci_high'])}"
+                f", expected {r['expected']} ({r['outcome']})")
+        out.append(_judged(text, r) if r["outcome"] == "flat" else Failure(text))
     if not manip.empty:
         q = manip[manip["target"] != "actions"].set_index("target")
         u = q.loc["q_urgency"]
         if not (u["outcome"] == "as expected" and u["shift"] >= MIN_URGENCY_SHIFT):
-            out.append(f"the deadline moved urgency by {_signed(u['shift'])} "
-                       f"[{_signed(u['ci_low'])}, {_signed(u['ci_high'])}] (needs ≥ "
-                       f"{_signed(MIN_URGENCY_SHIFT)}, interval above 0)")
+            text = (f"the deadline moved urgency by {_signed(u['shift'])} "
+                    f"[{_signed(u['ci_low'])}, {_signed(u['ci_high'])}] (needs ≥ "
+                    f"{_signed(MIN_URGENCY_SHIFT)}, interval above 0)")
+            out.append(Failure(text) if u["outcome"] == "reversed"
+                       else _judged(text, u, "matched personas"))
         rev = q.index[q["outcome"] == "reversed"]
         if len(rev):
-            out.append("the deadline moved against its direction: " + ", ".join(rev))
+            out.append(Failure("the deadline moved against its direction: " + ", ".join(rev)))
     return out
 
 
-def retest_failures(table: pd.DataFrame, identical: float, temperature: object) -> list[str]:
+def retest_failures(table: pd.DataFrame, identical: float, temperature: object
+                    ) -> list[Failure]:
     """What test–retest finds wrong (module docstring); nothing when it was not measured."""
     if table.empty:
         return []
     out = []
     low = table[(table["kind"] != "action") & (table["icc"] < MIN_ICC)]
     if not low.empty:
-        out.append(f"test–retest ICC below {MIN_ICC:g} over {int(table['samples'].iloc[0])} "
-                   "samples: " + ", ".join(f"{r.target} {r.icc:.2f}" for r in low.itertuples()))
+        out.append(_judged(f"test–retest ICC below {MIN_ICC:g} over "
+                           f"{int(table['samples'].iloc[0])} samples: "
+                           + ", ".join(f"{r.target} {r.icc:.2f}" for r in low.itertuples()),
+                           low.iloc[0], "records"))
     if temperature == 0 and identical < 1:
-        out.append(f"server not reproducible: at temperature 0, {1 - identical:.0%} of "
-                   f"records differ across their {int(table['samples'].iloc[0])} samples "
-                   "(each sent with its own seed; for llama.cpp set extra_body "
-                   "{cache_prompt: false}, docs/llm.md)")
+        out.append(Failure(
+            f"server not reproducible: at temperature 0, {1 - identical:.0%} of records "
+            f"differ across their {int(table['samples'].iloc[0])} samples (each sent with "
+            "its own seed; for llama.cpp set extra_body {cache_prompt: false}, docs/llm.md)"))
     return out
 
 
@@ -155,26 +231,42 @@ def retest_summary(table: pd.DataFrame, identical: float) -> str:
             f"records, {identical:.0%} identical{lowest}")
 
 
-def verdict(sens: pd.DataFrame, fails: list[str]) -> tuple[str, list[str]]:
-    """(verdict, reasons): ``not persona-sensitive`` when no answer is, else ``weak``
-    with ``fails``, else ``usable``; ``weak`` too, saying so, when no answer is and the
-    personas are too few for the test (:data:`MAX_NULL_R2`)."""
+def _needs_text(f: Failure) -> str:
+    return (f"needs ≈ {f.needs:,} {f.unit}" if f.needs is not None
+            else f"needs more {f.unit} than can be asked")
+
+
+def verdict(sens: pd.DataFrame, fails: list[Failure]) -> tuple[str, list[str]]:
+    """(verdict, reasons): ``not persona-sensitive`` when no answer is and the test could
+    have seen a usable respondent's dependence; ``weak`` with the failures of checks that
+    could have passed; ``not enough personas to tell`` when only checks without that
+    power failed (each with the size it needs, :mod:`.audit_power`); else ``usable``."""
     answers = sens[sens["family"] == "answer"]
-    n, columns = int(answers["n"].iloc[0]), int(answers["columns"].iloc[0])
-    if not answers["sensitive"].any() and answers["r2"].notna().any() and (
-            columns >= MAX_NULL_R2 * (n - 1)):
-        return WEAK, [f"too few personas to test persona sensitivity: {n} personas for "
-                      f"{columns} persona-field columns (a shuffle alone explains about "
-                      f"{columns / max(n - 1, 1):.0%} of any answer; ask at least "
-                      f"{math.floor(columns / MAX_NULL_R2) + 2})", *fails]
     if not answers["sensitive"].any():
         best = answers["excess"].max()
-        why = (f"no answer follows the persona beyond a persona-shuffled null (0 of "
-               f"{len(answers)}; largest R² excess {best:+.3f})" if np.isfinite(best) else
-               "every answer is constant")
-        return NOT_SENSITIVE, [why + ": the populations built from these answers are "
+        if not np.isfinite(best):
+            return NOT_SENSITIVE, ["every answer is constant: the populations built from "
+                                   "these answers are artifacts"]
+        scored = answers[answers["kind"] != "action"].iloc[0]
+        seen = (f"no answer follows the persona beyond a persona-shuffled null (0 of "
+                f"{len(answers)}; largest R² excess {best:+.3f}); at {int(scored['n'])} "
+                f"personas the test sees an R² of {scored['mde']:.2f} or more "
+                f"({POWER:.0%} power; a usable respondent's: "
+                f"{power.USABLE['sensitivity']:.2f})")
+        if not scored["powered"]:
+            need = _judged(seen, scored)
+            return UNDECIDED, [f"{_needs_text(need)}: {seen}"]
+        return NOT_SENSITIVE, [seen + ": the populations built from these answers are "
                                "artifacts"]
-    return (WEAK, fails) if fails else (USABLE, [])
+    facts = [f.text for f in fails if f.powered]
+    unpowered = [f for f in fails if not f.powered]
+    told = [f"could not tell ({_needs_text(f)}): {f.text}" for f in unpowered]
+    if facts:
+        return WEAK, facts + told
+    if unpowered:
+        worst = max(unpowered, key=lambda f: (f.unit == "personas", f.needs or math.inf))
+        return UNDECIDED, [_needs_text(worst), *told]
+    return USABLE, []
 
 
 def audit_respondent(personas: pd.DataFrame, r: RespondentTables, *, rng_seed: int = 0,
@@ -200,19 +292,21 @@ def audit_respondent(personas: pd.DataFrame, r: RespondentTables, *, rng_seed: i
     sens = mark_sensitive(sensitivity(targets, persona_basis(who),
                                       rng=np.random.default_rng(rng_seed), n_perm=n_perm))
     values = pd.concat([base, prof[list(PARAMS)]], axis=1) if not prof.empty else base
-    dirs = directions(who, values, rng=np.random.default_rng(rng_seed), n_boot=n_boot)
-    manip = manipulation(responses, rng=np.random.default_rng(rng_seed), n_boot=n_boot)
+    dirs = mark_directions(directions(who, values, rng=np.random.default_rng(rng_seed),
+                                      n_boot=n_boot))
+    manip = mark_manipulation(manipulation(responses, rng=np.random.default_rng(rng_seed),
+                                           n_boot=n_boot))
     spread_ = spread(samples)
     distinct = distinct_rows(samples[samples["sample"] == 0], personas)
     # the mapping the profiles used (a second respondent's set A~<name>-2 maps with A)
     mapping = (ProfileSet.parse(str(r.profiles["mapping"].iloc[0])).base
                if not r.profiles.empty else MAIN_MAPPING)
-    again = retest(samples, lambda one: build_profiles(one, personas, mapping))
+    again = mark_retest(retest(samples, lambda one: build_profiles(one, personas, mapping)))
     identical = identical_share(samples)
     unstable = retest_failures(again, identical, r.meta.get("temperature"))
     word, reasons = verdict(sens, failures(spread_, sens, dirs, manip, distinct) + unstable)
-    if word == NOT_SENSITIVE:  # said beside it: an unreproducible server is its own problem
-        reasons += unstable
+    if word in (NOT_SENSITIVE, UNDECIDED):  # said beside it: its own problem
+        reasons += [f.text for f in unstable if f.powered]
     urgency = manip.set_index("target")["shift"].get("q_urgency", np.nan) if not manip.empty \
         else np.nan
     summary = pd.DataFrame([{

@@ -12,10 +12,12 @@ rule makes on a placebo is a false positive. Per rule and claim:
 * **exact permutation** (significant rule): claims *above the null* (5 %; exact by
   construction — with P − 1 replicates it can reach 0.05 only when P ≥ 20, so a study
   with fewer has no placebo for it, and says so);
-* **crossover test**: any crossover surviving the table's control between the two arms
-  of a swap permutation (5 %). Size-matched subsets (as the populations of any other null
-  design) are no placebo for it — one random persona and hundreds may truly order
-  controllers differently — so their crossovers are reported as a diagnostic;
+* **crossover test**: any crossover surviving the table's control between the two
+  populations of a null replicate that hold the same personas (the arms of a swap
+  permutation; 5 %). Those of any other null kind (size-matched subsets: one random persona
+  and hundreds may truly order controllers differently) are no placebo for it, so their
+  crossovers are reported as a diagnostic; each kind names its claim
+  (:data:`popnavshift.populations.identity.NULL_KINDS`);
 * diagnostic, no verdict rests on it: the **episode-only interval** of the excess excludes
   0 (nominal 5 % if it were a test against the null; it is not: it holds the replicates
   fixed).
@@ -48,7 +50,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from .nulls import DEFAULT_NULL
+from ..populations.identity import NULL_KINDS
 from .verdicts import (
     ABOVE,
     ALPHA,
@@ -56,6 +58,7 @@ from .verdicts import (
     MIN_EFFECT,
     MIN_NULLS_T,
     SMALL,
+    binomial_floor,
     clopper_pearson,
     min_nulls_permutation,
     permutation_test,
@@ -71,7 +74,7 @@ class Test:
     its false-positive rate)."""
 
     name: str
-    decide: Callable[[float, np.ndarray], dict]
+    decide: Callable[..., dict]  # (rate, null rates, *, floor) → dict with ``verdict``
     min_nulls: int
 
 
@@ -109,10 +112,11 @@ CHECKS: tuple[Check, ...] = (
 )
 #: every test of :data:`CHECKS`, by name
 TESTS: dict[str, Test] = {c.test.name: c.test for c in CHECKS}
-CROSSOVER_CLAIM = "a crossover between swap arms"
-#: Subsets of different sizes (size-matched: one persona against hundreds) may truly order
-#: controllers differently: a crossover there is not known to be false, only reported.
-CROSSOVER_SUBSETS = "a crossover among {} subsets"
+#: the crossover claims that are false positives: between populations of the same personas
+#: (swap arms); any other null kind's populations (subsets of different sizes: one persona
+#: against hundreds) may truly order controllers differently, so a crossover there is only
+#: reported
+FALSE_CROSSOVERS = frozenset(k.crossover for k in NULL_KINDS.values() if k.same_personas)
 COLUMNS = ["comparison", "test", "rule", "claim", "kind", "nominal", "placebos", "claims",
            "rate", "cp_low", "cp_high", "within", "status"]
 FAMILY_EFFECT = "any rate above or below the null"
@@ -133,12 +137,21 @@ def placebos(null_rates: pd.DataFrame) -> pd.DataFrame:
             for j in range(len(rates)):
                 if not np.isfinite(rates[j]):
                     continue
-                d = check.test.decide(rates[j] + check.shift, np.delete(rates, j))
+                d = check.test.decide(rates[j] + check.shift, np.delete(rates, j),
+                                      floor=_floor_without(g, j))
                 rows.append({"comparison": comp, "metric": metric, "test": check.test.name,
                              "rule": rule, "claim": check.claim,
                              "replicate": int(g["replicate"].iloc[j]),
                              "claim_made": bool(check.made(d))})
     return pd.DataFrame(rows)
+
+
+def _floor_without(g: pd.DataFrame, j: int) -> float:
+    """The binomial floor (:func:`.verdicts.binomial_floor`) of replicates ``g`` but row j."""
+    if "comparable" not in g:
+        return 0.0
+    return binomial_floor(np.delete(g["reversals"].to_numpy(float), j),
+                          np.delete(g["comparable"].to_numpy(float), j))
 
 
 def family_placebos(null_rates: pd.DataFrame, family: int, *, alpha: float = ALPHA
@@ -150,22 +163,26 @@ def family_placebos(null_rates: pd.DataFrame, family: int, *, alpha: float = ALP
     truth is no effect), and, on the placebo shifted up by 5 pp, whether any was called
     *no excess ≥ 5 pp* (false: the truth is +5 pp)."""
     raw = null_rates[null_rates["rule"] == "raw"]
-    groups = {k: g.set_index("replicate")["rate"] for k, g in
+    tables = {k: g.set_index("replicate") for k, g in
               raw.groupby(["comparison", "metric"], sort=False)}
+    groups = {k: t["rate"] for k, t in tables.items()}
     if not groups or family < 1:
         return pd.DataFrame()
     common = sorted(set.intersection(*(set(g.index) for g in groups.values())))
     rows = []
     for j in common:
         effect = small = False
-        for g in groups.values():
+        for key, g in groups.items():
             rest = g.drop(index=j).to_numpy(float)
             if len(rest) < MIN_NULLS_T or not np.isfinite(g[j]):
                 continue
-            effect |= prediction_test(g[j], rest, alpha=alpha / family)["verdict"] in (ABOVE,
-                                                                                       BELOW)
-            small |= prediction_test(g[j] + MIN_EFFECT, rest,
-                                     alpha=alpha / family)["verdict"] == SMALL
+            others = tables[key].drop(index=j)
+            floor = (binomial_floor(others["reversals"], others["comparable"])
+                     if "comparable" in others else 0.0)
+            effect |= prediction_test(g[j], rest, alpha=alpha / family,
+                                      floor=floor)["verdict"] in (ABOVE, BELOW)
+            small |= prediction_test(g[j] + MIN_EFFECT, rest, alpha=alpha / family,
+                                     floor=floor)["verdict"] == SMALL
         rows += [{"comparison": "table", "test": "headline table", "rule": "raw",
                   "claim": FAMILY_EFFECT, "replicate": j, "claim_made": effect},
                  {"comparison": "table", "test": "headline table", "rule": "raw",
@@ -191,9 +208,10 @@ def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame
     its Clopper–Pearson 95 % interval, the nominal level, ``within`` (the interval's lower
     end at or below it; NaN for power rows) and ``status`` (:func:`status`). Rows follow
     ``CHECKS``, then the headline table as a whole (with ``family`` raw rates, each decided
-    at α/``family``), the crossover test (a placebo between swap arms, a diagnostic among
-    the subsets of another null: ``null_kinds`` gives each comparison's null design kind,
-    default :data:`.nulls.DEFAULT_NULL`) and the episode-only interval (a diagnostic)."""
+    at α/``family``), the crossover test (a placebo between populations of the same
+    personas, a diagnostic among those of another null kind: ``null_kinds`` gives each
+    comparison's kind of :data:`NULL_KINDS`, which names its claim) and the episode-only
+    interval (a diagnostic)."""
     if null_rates is None or null_rates.empty:
         return pd.DataFrame(columns=COLUMNS)
     p = placebos(null_rates)
@@ -202,12 +220,10 @@ def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame
     if not fam.empty:
         frames.append(fam)
     if placebo_crossovers is not None and not placebo_crossovers.empty:
-        null_of = {**DEFAULT_NULL, **(null_kinds or {})}
-        null = [null_of.get(c, "sized") for c in placebo_crossovers["comparison"]]
+        null_of = null_kinds or {}
         frames.append(placebo_crossovers.assign(
             test="crossover test", rule="—",
-            claim=[CROSSOVER_CLAIM if k == "swap" else CROSSOVER_SUBSETS.format(k)
-                   for k in null],
+            claim=[NULL_KINDS[null_of[c]].crossover for c in placebo_crossovers["comparison"]],
             claim_made=placebo_crossovers["any"].astype(bool)))
     if "episode_excludes_zero" in null_rates:
         e = null_rates[null_rates["episode_excludes_zero"].notna()]
@@ -226,7 +242,7 @@ def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame
             if claim == FAMILY_SMALL:
                 nominal = ALPHA / 2
             if test.startswith("episode") or (test == "crossover test"
-                                               and claim != CROSSOVER_CLAIM):
+                                               and claim not in FALSE_CROSSOVERS):
                 kind = "diagnostic"
             k, n = int(g["claim_made"].sum()), len(g)
             low, high = clopper_pearson(k, n)

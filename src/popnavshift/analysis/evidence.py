@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from .delay import cell_metrics, paired_delays
-from .nulls import CI_LEVEL, null_test
+from .nulls import CI_LEVEL, Design, null_test
 from .ranked import RANKED_NAMES
 from .resample import build_design, episode_weights, resampled_metrics
 from .significance import ALPHA, LEVEL, Orderings, crossover_tests, orderings
@@ -49,25 +49,34 @@ class Tested:
     level: float
     #: (comparison, metric, rule) → the excess over the null in every resample (B,)
     boot_excess: dict[tuple[str, str, str], np.ndarray] = field(default_factory=dict)
+    #: with a ``controller``: ``headline`` and ``null_rates`` of each of its pairs alone
+    #: (column ``baseline``: the other controller of the pair)
+    pair_headline: pd.DataFrame = field(default_factory=pd.DataFrame)
+    pair_null_rates: pd.DataFrame = field(default_factory=pd.DataFrame)
 
 
 def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
-                     designs: dict[str, tuple[list, list]], observed: Sequence[str], *,
+                     designs: dict[str, Design], observed: Sequence[str], *,
                      rng: np.random.Generator, n_boot: int = N_BOOT, level: float = LEVEL,
                      alpha: float = ALPHA, method: str = "holm",
                      metrics: Sequence[str] = RANKED_NAMES,
-                     ci_level: float = CI_LEVEL, rates_only: bool = False) -> Tested:
+                     ci_level: float = CI_LEVEL, rates_only: bool = False,
+                     controller: str | None = None) -> Tested:
     """Every comparison design of ``designs`` tested on ``runs`` (see the module doc).
 
     Args:
       runs, pedestrians: the runs analysed (observed and null populations, every seed
         set to pool: a cell pools all its episodes).
-      designs: label → (observed pairs, one list of pairs per null replicate).
+      designs: label → its :class:`.nulls.Design` (observed pairs, one list of pairs per
+        null replicate).
       observed: the observed populations (orderings, crossover tests and ranks).
       rng: draws the episode resamples (shared by every metric and population).
       rates_only: only the rates against their nulls (``headline``, ``null_rates``): the
         crossover tests, orderings and ranks are left empty (the replicate curve needs
         no more).
+      controller: count only the orderings of this controller against the others (a
+        card: never the others' among themselves), pooled and, in ``pair_headline`` and
+        ``pair_null_rates``, pair by pair.
     """
     paired = paired_delays(pedestrians)
     cells = cell_metrics(runs, paired)
@@ -75,16 +84,27 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
     weights = episode_weights(design, n_boot, rng)
     boot_excess: dict[tuple[str, str, str], np.ndarray] = {}
     frames: dict[str, list[pd.DataFrame]] = {k: [] for k in ("head", "null", "cross", "ord",
-                                                           "rank", "placebo")}
+                                                           "rank", "placebo", "pair_head",
+                                                           "pair_null")}
     for metric in metrics:
         boot = resampled_metrics(design, weights, (metric,))
         o = orderings(cells, design, boot, metric, level=level)
-        for label, (obs_pairs, null_pairs) in designs.items():
+        if controller is not None:
+            o = o.involving(controller)
+        for label, d in designs.items():
+            obs_pairs, null_pairs = d.observed, d.nulls
             rows, reps = null_test(o, obs_pairs, null_pairs, ci_level=ci_level)
             for row in rows:
                 boot_excess[(label, metric, row["rule"])] = row.pop("boot_excess")
             frames["head"].append(pd.DataFrame(rows).assign(comparison=label))
             frames["null"].append(reps.assign(comparison=label))
+            for other in _others(o, controller):
+                assert controller is not None
+                one, one_reps = null_test(o.involving(controller, other), obs_pairs, null_pairs,
+                                          ci_level=ci_level)
+                frames["pair_head"].append(pd.DataFrame(one).drop(columns="boot_excess")
+                                           .assign(comparison=label, baseline=other))
+                frames["pair_null"].append(one_reps.assign(comparison=label, baseline=other))
             if rates_only:
                 continue
             frames["cross"].append(crossover_tests(o, _populations(obs_pairs), method=method,
@@ -102,7 +122,14 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
         del boot, o
     cat = {k: pd.concat(v, ignore_index=True) if v else pd.DataFrame() for k, v in frames.items()}
     return Tested(cat["head"], cat["null"], cat["cross"], cat["ord"], cat["rank"],
-                  cat["placebo"], n_boot, level, boot_excess)
+                  cat["placebo"], n_boot, level, boot_excess, cat["pair_head"], cat["pair_null"])
+
+
+def _others(o: Orderings, controller: str | None) -> list[str]:
+    """The controllers ``controller`` is ordered against in ``o`` (none without one)."""
+    if controller is None:
+        return []
+    return [a if b == controller else b for a, b in o.pairs]
 
 
 def _populations(pairs: Sequence[tuple[str, str]]) -> list[str]:

@@ -24,62 +24,20 @@ Pure functions; definitions in ``docs/analysis.md`` §7 and §10.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Collection, Iterable, Mapping, Sequence
+from collections.abc import Collection, Sequence
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..populations.identity import (
-    ARMS,
-    MATCHED_PAIR,
-    SIZED_SOURCE,
-    PopulationSpec,
-    null_kind,
-    spec_of,
-)
+from ..populations.identity import MATCHED_PAIR, NULL_KINDS, NullKind, PopulationSpec
 from .reversals import population_pairs
 from .significance import Orderings, PairCounts, pair_counts
-from .verdicts import decide
+from .verdicts import binomial_floor, decide
 
 RULES: tuple[str, ...] = ("sig", "raw")
 CI_LEVEL = 0.95  # coverage of the excess interval
-
-
-def swap_replicates(populations: Iterable[PopulationSpec]) -> list[int]:
-    """The swap permutations whose two arms are both among ``populations``, sorted."""
-    arms: dict[int, set[str]] = {}
-    for spec in populations:
-        if spec.role == "swap_null":
-            arms.setdefault(spec.replicate, set()).add(spec.arm)
-    return sorted(k for k, a in arms.items() if a == {"a", "b"})
-
-
-def sized_replicates(populations: Collection[PopulationSpec], observed: Sequence[str]
-                     ) -> list[int]:
-    """The size-matched replicates that hold a subset for every one of ``observed``
-    (``mixed`` stands for itself), sorted."""
-    have = {s.name for s in populations}
-    reps = {s.replicate for s in populations if s.role == "sized_null"}
-    need = [p for p in observed if p != SIZED_SOURCE]
-    return sorted(k for k in reps if all(PopulationSpec.sized(p, k).name in have for p in need))
-
-
-def swap_pairs(k: int) -> list[tuple[str, str]]:
-    return [tuple(PopulationSpec.swap(k, arm).name for arm in ARMS)]  # type: ignore[list-item]
-
-
-def sized_pairs(observed_pairs: Sequence[tuple[str, str]], k: int, *,
-                swap: bool = False) -> list[tuple[str, str]]:
-    """The null of each observed pair: both populations replaced by replicate ``k`` of
-    their size-matched subsets (``mixed`` by itself). With ``swap``, the matched pair's null
-    is swap permutation ``k`` instead: its arms hold the same personas in every slot, as the
-    matched pair does, where two independent subsets would not (and would reverse more)."""
-    def sub(p: str) -> str:
-        return p if p == SIZED_SOURCE else PopulationSpec.sized(p, k).name
-
-    return [swap_pairs(k)[0] if swap and {a, b} == set(MATCHED_PAIR) else (sub(a), sub(b))
-            for a, b in observed_pairs]
 
 
 def null_test(o: Orderings, observed: Sequence[tuple[str, str]],
@@ -130,7 +88,7 @@ def excess_over(obs: PairCounts, reps: Sequence[PairCounts], rule: str, *,
     row = {"observed": rate, "reversals": int(getattr(obs, f"{rule}_reversals").sum()),
            "comparable": int(getattr(obs, f"{rule}_comparable").sum()),
            "n_null": int(finite.size), "n_episodes": n_episodes,
-           **decide(rate, finite, rule, alpha=1 - ci_level)}
+           **decide(rate, finite, rule, alpha=1 - ci_level, floor=_floor(reps, rule))}
     if finite.size == 0 or not np.isfinite(rate):
         return {**row, "null_mean": np.nan, "null_sd": np.nan, "null_min": np.nan,
                 "null_max": np.nan, "episode_ci_low": np.nan, "episode_ci_high": np.nan
@@ -141,6 +99,12 @@ def excess_over(obs: PairCounts, reps: Sequence[PairCounts], rule: str, *,
             "null_sd": float(finite.std(ddof=1)) if finite.size > 1 else np.nan,
             "null_min": float(finite.min()), "null_max": float(finite.max()),
             "episode_ci_low": float(low), "episode_ci_high": float(high)}, boot
+
+
+def _floor(reps: Sequence[PairCounts], rule: str) -> float:
+    """The binomial floor of the replicates' spread (:func:`.verdicts.binomial_floor`)."""
+    return binomial_floor([getattr(r, f"{rule}_reversals").sum() for r in reps],
+                          [getattr(r, f"{rule}_comparable").sum() for r in reps])
 
 
 def replicate_table(metric: str, reps: Sequence[PairCounts], *, ci_level: float = CI_LEVEL,
@@ -228,12 +192,16 @@ def family_verdicts(headline: pd.DataFrame, null_rates: pd.DataFrame, *,
     1, of the rule's test); the per-test p-values are kept."""
     out = headline.reset_index(drop=True).copy()
     key = ["comparison", "metric", "rule"]
-    rates = {k: g["rate"].to_numpy(float) for k, g in null_rates.groupby(key, sort=False)}
+    groups = dict(list(null_rates.groupby(key, sort=False)))
+    rates = {k: g["rate"].to_numpy(float) for k, g in groups.items()}
+    floors = {k: binomial_floor(g["reversals"], g["comparable"]) if "comparable" in g else 0.0
+              for k, g in groups.items()}
     for rule, rows in out.groupby("rule", sort=False):
         tested = rows[rows["n_null"] > 0]
         m = max(len(tested), 1)
         for i, r in tested.iterrows():
-            d = decide(float(r["observed"]), rates[(r["comparison"], r["metric"], rule)], rule,
+            k = (r["comparison"], r["metric"], rule)
+            d = decide(float(r["observed"]), rates[k], rule, floor=floors[k],
                        alpha=alpha / m)
             for col in ("ci_low", "ci_high", "verdict"):
                 out.at[i, col] = d[col]
@@ -244,56 +212,77 @@ def family_verdicts(headline: pd.DataFrame, null_rates: pd.DataFrame, *,
     return out
 
 
-def headline_designs(populations: Collection[PopulationSpec],
-                     observed_populations: Sequence[str]) -> dict[str, tuple[list, list]]:
-    """The study's headline comparisons and their nulls: label → (observed pairs, one
-    list of pairs per null replicate; empty when the study ran no null). ``populations``:
-    those the study ran (``Study.population_specs``).
+class Design(NamedTuple):
+    """A headline comparison: its observed population pairs, one list of null pairs per
+    null replicate (empty when the study ran none) and the kind of null design
+    (:data:`popnavshift.populations.identity.NULL_KINDS`) it is tested against."""
 
-    ``matched``: the matched pair against the swap permutations present;
-    ``all_pairs``: every pair of ``observed_populations`` against the size-matched
-    replicates that cover them all (left out when it would be the matched pair alone); the
-    matched pair among them gets swap permutation k as its null where the study ran it.
-    Two approximations remain, both documented (docs/analysis.md §7): cohorts that share
-    personas get independent subsets, and ``homogeneous`` (the median profile, not a
-    member of mixed) gets one random member.
+    observed: list[tuple[str, str]]
+    nulls: list[list[tuple[str, str]]]
+    null: str
+
+
+def headline_designs(populations: Collection[PopulationSpec],
+                     observed_populations: Sequence[str]) -> dict[str, Design]:
+    """The study's headline comparisons and their nulls, by label. ``populations``: those
+    the study ran (``Study.population_specs``).
+
+    ``matched``: the matched pair against a null kind of the same personas (swap
+    permutations); ``all_pairs``: every pair of ``observed_populations`` (left out when it
+    would be the matched pair alone), each pair against the first null kind that the study
+    ran for it (:func:`comparison_design`: the matched pair among them gets swap permutation
+    k where the study ran it, the others size-matched subsets). Two approximations remain,
+    both documented (docs/analysis.md §7): cohorts that share personas get independent
+    subsets, and ``homogeneous`` (the median profile, not a member of mixed) gets one
+    random member.
     """
-    out: dict[str, tuple[list, list]] = {}
+    out: dict[str, Design] = {}
     if set(MATCHED_PAIR) <= {s.name for s in populations}:
-        out["matched"] = ([MATCHED_PAIR], [swap_pairs(k) for k in swap_replicates(populations)])
+        out["matched"] = comparison_design([MATCHED_PAIR], populations, same_personas=True)
     obs = list(observed_populations)
     if len(obs) >= 2 and not (len(obs) == 2 and set(obs) == set(MATCHED_PAIR) and out):
-        pairs = population_pairs(obs)
-        reps = sized_replicates(populations, obs)
-        swaps = set(swap_replicates(populations))
-        swap = set(MATCHED_PAIR) <= set(obs) and bool(swaps)
-        if swap:
-            reps = [k for k in reps if k in swaps]
-        out["all_pairs"] = (pairs, [sized_pairs(pairs, k, swap=swap) for k in reps])
+        out["all_pairs"] = comparison_design(population_pairs(obs), populations)
     return out
 
 
-#: The null a comparison is tested against when the study ran none of its replicates.
-DEFAULT_NULL = {"matched": "swap", "all_pairs": "sized"}
+def comparison_design(pairs: Sequence[tuple[str, str]], populations: Collection[PopulationSpec],
+                      *, same_personas: bool = False) -> Design:
+    """The comparison of observed ``pairs`` against the null replicates among ``populations``.
+
+    Each pair stands in by the first kind of :data:`NULL_KINDS` (only kinds of the same
+    personas with ``same_personas``) whose ``pair`` the study ran for it; replicate k is a
+    null of the comparison when every pair's populations of k are present. The comparison's
+    null kind is that of its first pair other than the matched pair (or of the matched
+    pair alone); without replicates, the first kind that stands in for every pair.
+    """
+    have = {s.name for s in populations}
+    reps = sorted({s.replicate for s in populations if s.is_null})
+    kinds = {n: k for n, k in NULL_KINDS.items() if k.same_personas or not same_personas}
+
+    def ran(kind: NullKind, pair: tuple[str, str], k: int) -> bool:
+        null = kind.pair(pair, k)
+        return null is not None and all(s.name in have for s in null)
+
+    chosen = [next((n for n, kind in kinds.items() if any(ran(kind, p, k) for k in reps)),
+                   "") for p in pairs]
+    covered = [k for k in reps if all(c and ran(NULL_KINDS[c], p, k)
+                                      for c, p in zip(chosen, pairs, strict=True))]
+    if covered:
+        i = next((j for j, p in enumerate(pairs) if set(p) != set(MATCHED_PAIR)), 0)
+        nulls = [[_names(NULL_KINDS[c].pair(p, k)) for c, p in zip(chosen, pairs, strict=True)]
+                 for k in covered]
+        return Design(list(pairs), nulls, chosen[i])
+    default = next((n for n, kind in kinds.items() if all(kind.pair(p, 1) for p in pairs)), "")
+    return Design(list(pairs), [], default)
 
 
-def design_null(label: str, observed: Sequence[tuple[str, str]],
-                nulls: Sequence[Sequence[tuple[str, str]]],
-                specs: Mapping[str, PopulationSpec]) -> str:
-    """The null design kind (:data:`popnavshift.populations.identity.NULL_KINDS`) comparison
-    ``label`` is tested against: that of the replicates standing in for its first pair other
-    than the matched pair (whose null is swap permutation k wherever the study ran it), or
-    for the matched pair alone; without replicates, :data:`DEFAULT_NULL`."""
-    if not nulls:
-        return DEFAULT_NULL[label]
-    i = next((j for j, pair in enumerate(observed) if set(pair) != set(MATCHED_PAIR)), 0)
-    spec = next(s for s in (spec_of(specs, p) for p in nulls[0][i]) if s.is_null)
-    return null_kind(spec)
+def _names(null: tuple[PopulationSpec, PopulationSpec] | None) -> tuple[str, str]:
+    assert null is not None  # a pair the chosen kind stands in for
+    return null[0].name, null[1].name
 
 
-def design_populations(observed: Sequence[tuple[str, str]],
-                       nulls: Sequence[Sequence[tuple[str, str]]]) -> list[str]:
+def design_populations(design: Design) -> list[str]:
     """Every population a comparison design needs, observed first."""
-    pops = [p for pair in observed for p in pair]
-    pops += [p for pairs in nulls for pair in pairs for p in pair]
+    pops = [p for pair in design.observed for p in pair]
+    pops += [p for pairs in design.nulls for pair in pairs for p in pair]
     return list(dict.fromkeys(pops))

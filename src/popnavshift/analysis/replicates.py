@@ -23,6 +23,7 @@ import pandas as pd
 
 from .delay import cell_metrics, paired_delays
 from .evidence import test_comparisons
+from .nulls import Design
 from .ranked import names
 from .reversals import comparisons
 from .significance import LEVEL
@@ -43,7 +44,7 @@ def _ordered_sets(runs: pd.DataFrame, study_seed: int) -> list[int]:
 
 
 def replicate_curve(runs: pd.DataFrame, pedestrians: pd.DataFrame,
-                    designs: dict[str, tuple[list, list]], observed: Sequence[str], *,
+                    designs: dict[str, Design], observed: Sequence[str], *,
                     study_seed: int, seed: int = 0, n_boot: int = CURVE_BOOT,
                     level: float = LEVEL,
                     metrics: Sequence[str] = (*names("burden"), *names("robot")),
@@ -72,7 +73,7 @@ def replicate_curve(runs: pd.DataFrame, pedestrians: pd.DataFrame,
 
 
 def replicability(runs: pd.DataFrame, pedestrians: pd.DataFrame,
-                  designs: dict[str, tuple[list, list]], *, study_seed: int,
+                  designs: dict[str, Design], *, study_seed: int,
                   metrics: Sequence[str] = names(paper=True)
                   ) -> pd.DataFrame:
     """Per (comparison, kind ∈ {observed, null design}, metric): the marginal raw reversal rate
@@ -88,8 +89,9 @@ def replicability(runs: pd.DataFrame, pedestrians: pd.DataFrame,
     for s in order:
         r = runs[(sets == s).to_numpy()]
         cells = cell_metrics(r, paired_delays(pedestrians[(psets == s).to_numpy()]))
-        for label, (obs, nulls) in designs.items():
-            for kind, pairs in (("observed", obs), ("null design", [p for n in nulls for p in n])):
+        for label, d in designs.items():
+            for kind, pairs in (("observed", d.observed),
+                                ("null design", [p for n in d.nulls for p in n])):
                 c = comparisons(cells, pairs, metrics=metrics)
                 per_set.append(c.assign(seed_set=s, comparison=label, kind=kind))
     allc = pd.concat(per_set, ignore_index=True)

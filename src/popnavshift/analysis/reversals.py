@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from itertools import combinations
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -27,6 +28,29 @@ from .ranked import TOLERANCES, names
 #: The paper's three ranked metrics (Table I); each one's tie tolerance is declared with it.
 METRICS: tuple[str, ...] = names(paper=True)
 TIE_EPS = 1e-9  # [s] guard against binary rounding at exactly the tolerance
+
+
+class Comparison(NamedTuple):
+    """A comparison of populations whose reversals the study reports (the ``comparison``
+    column), with its names on a page: its ``title`` (the answer's box), ``short`` (figure
+    panels and sentences), ``phrase`` ("under the matched shift") and ``noun`` ("the
+    matched intervention")."""
+
+    title: str
+    short: str
+    phrase: str
+    noun: str
+
+
+#: Every comparison, in the order a page shows them: the matched pair, then every pair of
+#: the main part's populations.
+COMPARISONS: dict[str, Comparison] = {
+    "matched": Comparison("Matched time-pressure shift (same personas)",
+                          "Matched time-pressure shift", "under the matched shift",
+                          "the matched intervention"),
+    "all_pairs": Comparison("All population pairs of the main grid", "All population pairs",
+                            "across the population pairs", "the population pairs"),
+}
 
 
 def population_pairs(populations: Sequence[str]) -> list[tuple[str, str]]:
@@ -115,14 +139,14 @@ def comparisons(
     ctrl = _controllers(cells, controllers)
     pops = sorted({p for pair in pairs for p in pair})
     _check_names(pops, metrics, cells, tolerances)
-    ia = [pops.index(a) for a, _ in pairs]
-    ib = [pops.index(b) for _, b in pairs]
+    ia = np.array([pops.index(a) for a, _ in pairs], dtype=int)  # int even when empty
+    ib = np.array([pops.index(b) for _, b in pairs], dtype=int)
     done = completed_units(cells, ctrl).unstack("population").reindex(columns=pops)
     frames = []
     for metric in metrics:
         diffs = _diffs_by_population(cells, metric, ctrl).reindex(columns=pops)
         units = diffs.index.droplevel(["ctrl_1", "ctrl_2"])
-        both_done = done.reindex(units).eq(True).to_numpy()  # (n, n_pops)
+        both_done = done.reindex(units).eq(True).to_numpy(bool)  # (n, n_pops)
         d = diffs.to_numpy(float)
         n, k = d.shape[0], len(pairs)
         f = diffs.index.to_frame(index=False).iloc[np.tile(np.arange(n), k)]

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from itertools import combinations
 
 import numpy as np
@@ -73,6 +73,17 @@ class Orderings:
 
     def index(self, population: str) -> int:
         return self.populations.index(population)
+
+    def involving(self, controller: str, other: str | None = None) -> Orderings:
+        """These orderings restricted to the controller pairs of ``controller`` (with
+        ``other`` only, when given): a card's rates count only its controller's orderings
+        against the baselines, never the baselines' among themselves."""
+        keep = [i for i, pair in enumerate(self.pairs) if controller in pair
+                and (other is None or other in pair)]
+        return replace(self, pairs=[self.pairs[i] for i in keep], diff=self.diff[..., keep],
+                       low=self.low[..., keep], high=self.high[..., keep],
+                       se=self.se[..., keep], sig=self.sig[..., keep],
+                       boot=self.boot[..., keep])
 
     def table(self) -> pd.DataFrame:
         """One row per (population, unit, controller pair): ``diff, low, high, se, sig,

@@ -1,7 +1,7 @@
 """One study's analysis: the main grid's tables → every section of the report, as tables.
 
 ``analyse(runs, pedestrians)`` computes, from the main grid
-(:func:`popnavshift.engine.folder.main_grid`), the noise floor, no-robot checks, paired
+(:func:`popnavshift.read.folder.main_grid`), the noise floor, no-robot checks, paired
 delays, cell metrics, Table I, Kendall τ, Table II and the trade-off, Fig. 2's change
 in delay, population sensitivity by width, and the paper's findings on our numbers. A
 section that cannot be computed on the study given (too few populations or controllers,
@@ -17,8 +17,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..engine.folder import is_half, split_halves
 from ..populations.identity import ARMS, MATCHED_PAIR, PopulationSpec
+from ..read.folder import is_half, split_halves
 from ..tables import NO_ROBOT
 from .delay import cell_metrics, paired_delays
 from .findings import WIDTH_SCENES, Finding, available_findings
@@ -43,18 +43,21 @@ CHANGE_METRICS: tuple[str, ...] = names("burden", paper=True)
 class Analysis:
     """Everything the report shows, computed from one study's tables.
 
-    ``populations``: those analysed (split halves aside); ``tables``: name → table
-    (each written as ``tables/<name>.csv``);
-    ``missing``: table name → why it could not be computed (``matched``: the matched rows
-    of ``reversals``; ``delays``: every delay table); ``findings``: the
-    paper's qualitative claims checked on our numbers; ``cells``, ``comps`` and
-    ``paired`` are kept for choosing the illustrative replays.
+    ``populations``: those analysed (split halves aside); ``tables``: name → table, each
+    declared in :data:`popnavshift.result_tables.RESULT_TABLES` (written as
+    ``tables/<name>.csv``); ``missing``: declared table name → why it could not be
+    computed; ``delays_missing``: why no pedestrian delay could be paired (every delay
+    table); ``profiles_missing``: why the motion profiles could not be drawn;
+    ``findings``: the paper's qualitative claims checked on our numbers; ``cells``,
+    ``comps`` and ``paired`` are kept for choosing the illustrative replays.
     """
 
     selection: str
     populations: list[str] = field(default_factory=list)
     tables: dict[str, pd.DataFrame] = field(default_factory=dict)
     missing: dict[str, str] = field(default_factory=dict)
+    delays_missing: str = ""
+    profiles_missing: str = ""
     findings: list[Finding] = field(default_factory=list)
     cells: pd.DataFrame | None = None
     comps: pd.DataFrame | None = None
@@ -75,15 +78,13 @@ def _rankings(a: Analysis, cells: pd.DataFrame, rng_seed: int, n_boot: int) -> N
     if len(pops) < 2 or len(ctrl) < 2:
         why = (f"rankings need at least 2 populations and 2 controllers; this study has "
                f"{len(pops)} population(s) and {len(ctrl)} controller(s)")
-        for s in ("reversals", "matched", "kendall_tau"):
+        for s in ("reversals", "kendall_tau"):
             a.missing[s] = why
         return
     t1 = reversal_table(cells, rng=np.random.default_rng(rng_seed), n_boot=n_boot)
     a.tables["reversals"] = t1.assign(paper_rate=[
         REVERSAL_RATE.get(c, {}).get(s, {}).get(m, np.nan)
         for c, s, m in t1[["comparison", "cells", "metric"]].itertuples(index=False)])
-    if not set(MATCHED_PAIR) <= set(pops):
-        a.missing["matched"] = f"the study lacks the matched pair ({', '.join(MATCHED_PAIR)})"
     a.comps = comparisons(cells, population_pairs(pops))
     tau = ranking_tau(a.comps).groupby(["metric", "pop_a", "pop_b"])
     a.tables["kendall_tau"] = tau.agg(tau=("tau", "mean"), n_cells=("tau", "count")).reset_index()
@@ -166,13 +167,13 @@ def analyse(runs: pd.DataFrame, peds: pd.DataFrame, *, selection: str = "",
     _sanity(a, peds)
     if runs[runs["controller"] != NO_ROBOT].empty:
         why = "the study has no robot runs"
-        for s in ("reversals", "matched", "kendall_tau", "controller_outcomes", "tradeoff",
+        for s in ("reversals", "kendall_tau", "controller_outcomes", "tradeoff",
                   "delay_change", "sensitivity_by_width", "findings"):
             a.missing[s] = why
         return a
     a.paired = paired_delays(peds)
     if a.paired.empty:
-        a.missing["delays"] = "no pedestrian has a paired delay (no no-robot baseline?)"
+        a.delays_missing = "no pedestrian has a paired delay (no no-robot baseline?)"
     a.tables["paired_share"] = paired_share(peds, a.paired)
     a.cells = cell_metrics(runs, a.paired)
     a.tables["cell_metrics"] = a.cells

@@ -30,14 +30,14 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..engine.folder import StudyFolder, main_part
 from ..populations.identity import spec_of
+from ..read.folder import StudyFolder
 from ..tables import NO_ROBOT
 from .calibrate import calibration_table
 from .evidence import complete_design, test_comparisons
 from .nulls import (
+    Design,
     burden_beyond_time,
-    design_null,
     design_populations,
     family_verdicts,
     headline_designs,
@@ -50,15 +50,24 @@ from .surviving import surviving_findings
 from .verdicts import ALPHA
 
 PREFIX = "evidence_"
+HEADLINE = PREFIX + "headline"
+
+
+def lacks(missing: dict[str, str], table: str, why: str) -> None:
+    """Say in ``missing`` why (part of) ``table`` could not be computed: one reason per
+    comparison, joined."""
+    missing[table] = f"{missing[table]}; {why}" if table in missing else why
 
 
 def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000,
                     level: float = LEVEL) -> tuple[dict[str, pd.DataFrame], dict[str, str]]:
-    """Every evidence table of the study (see the module doc) and why any is missing."""
-    main = main_part(study)
+    """Every evidence table of the study (see the module doc) and why any is missing (by the
+    table's name)."""
+    main = study.main_part()
     if main is None:
-        return {}, {"evidence": "the manifest names no study part"}
-    populations, backends, mappings = main
+        return {}, {HEADLINE: "the study has no main part (name one `main` or declare "
+                              "`role: main`)"}
+    populations, backends, mappings = main[1].populations, main[1].backends, main[1].mappings
     runs = study.runs[study.runs["backend"].isin(backends)
                       & study.runs["mapping"].isin(mappings)]
     peds = study.pedestrians[study.pedestrians["backend"].isin(backends)
@@ -69,27 +78,28 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
     observed = [p for p in populations if p in conditions]
     designs = headline_designs(present, observed)
     if not designs:
-        return {}, {"evidence": "the study has neither the matched pair nor two populations"}
+        return {}, {HEADLINE: "the study has neither the matched pair nor two populations"}
     seed = 0 if study.seed is None else int(study.seed)
     frames: dict[str, list[pd.DataFrame]] = {}
     missing: dict[str, str] = {}
     boot_excess: dict[tuple[str, str, str], np.ndarray] = {}
     costs: dict[str, Costs] = {}
-    for i, (label, (obs_pairs, nulls)) in enumerate(designs.items()):
-        pops = design_populations(obs_pairs, nulls)
+    for i, (label, design) in enumerate(designs.items()):
+        pops = design_populations(design)
         r, p = complete_design(runs, peds, pops)
         if r.empty:
-            missing[label] = f"no episode has runs of every population of the {label} design"
+            lacks(missing, HEADLINE, f"no episode has runs of every population of the {label} "
+                                     "design")
             continue
         if (r["controller"] == NO_ROBOT).all():
-            missing[label] = f"the {label} design has no robot runs"
+            lacks(missing, HEADLINE, f"the {label} design has no robot runs")
             continue
-        obs_pops = list(dict.fromkeys(x for pair in obs_pairs for x in pair))
-        one = {label: (obs_pairs, nulls)}
+        obs_pops = list(dict.fromkeys(x for pair in design.observed for x in pair))
+        one = {label: design}
         tested = test_comparisons(r, p, one, obs_pops, rng=np.random.default_rng([rng_seed, i]),
                                   n_boot=n_boot, level=level)
         n_sets = int(seed_sets(r).nunique())
-        head = tested.headline.assign(null=design_null(label, obs_pairs, nulls, index),
+        head = tested.headline.assign(null=design.null,
                                       seed_sets=n_sets, variants_per_cell=3 * n_sets)
         add = {"headline": head, "null_rates": tested.null_rates,
                "crossovers": tested.crossovers,
@@ -100,11 +110,10 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
                                rng_seed=rng_seed, level=level, missing=missing))
         boot_excess.update(tested.boot_excess)
         if head["n_null"].max() > 0:
-            costs[label] = design_costs(r, obs_pops, nulls, study.manifest)
+            costs[label] = design_costs(r, obs_pops, design.nulls, study.manifest)
         else:
-            missing[f"power_{label}"] = (f"the study ran no null of the {label} comparison "
-                                         f"({'a swap' if label == 'matched' else 'a sized'} "
-                                         "null part)")
+            lacks(missing, PREFIX + "power", f"the study ran no null of the {label} "
+                                             f"comparison (a {design.null} null part)")
         if label == "all_pairs":
             add["findings"] = surviving_findings(r[r["population"].isin(obs_pops)],
                                                  p[p["population"].isin(obs_pops)],
@@ -166,14 +175,16 @@ def design_costs(runs: pd.DataFrame, observed: list[str], nulls: list, manifest:
     return Costs(per_pop / n_sets, len(observed), per_rep, speed)
 
 
-def _replicates(runs: pd.DataFrame, peds: pd.DataFrame, design: dict, observed: list[str],
+def _replicates(runs: pd.DataFrame, peds: pd.DataFrame, design: dict[str, Design],
+                observed: list[str],
                 full: pd.DataFrame, *, label: str, seed: int, rng_seed: int, level: float,
                 missing: dict[str, str]) -> dict[str, pd.DataFrame]:
     """A comparison against its seed sets: rates curve and replicability (the curve is what
     the power advice measures the fall of the null's spread on)."""
     if int(seed_sets(runs).nunique()) < 2:
-        missing[f"curve_{label}"] = (f"the {label} comparison was run on one episode seed set: "
-                                     "add `seeds` to its parts to see rates against replicates")
+        lacks(missing, PREFIX + "curve", f"the {label} comparison was run on one episode seed "
+                                         "set: add `seeds` to its parts to see rates against "
+                                         "replicates")
         return {}
     curve = replicate_curve(runs, peds, design, observed, study_seed=seed, seed=rng_seed,
                             level=level, full=full)

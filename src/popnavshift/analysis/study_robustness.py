@@ -1,9 +1,9 @@
 """The robustness parts of a study (paper §IV-C, §V-D, §V-E) as tables.
 
-Each part whose role (:meth:`popnavshift.engine.study.Study.role`) is one of
+Each part whose role (:meth:`popnavshift.design.study.Study.role`) is one of
 :data:`ROLE_TABLES` (``mapping``, ``structure``, ``backend``, ``respondent``), whatever
 its name, is selected from the runs table by its own episodes, populations,
-backends and profile sets (:func:`popnavshift.engine.folder.part_runs`) and analysed with
+backends and profile sets (:func:`popnavshift.read.folder.part_runs`) and analysed with
 :mod:`popnavshift.analysis.robustness`; parts repeated on extra seed sets give the
 spread of their rates. Every table of profile sets carries the sets' columns of the
 runs table (``profile_base``, ``perturbation``, ``perturbation_arg``) beside their
@@ -17,8 +17,8 @@ from collections.abc import Callable
 import numpy as np
 import pandas as pd
 
-from ..engine.folder import StudyFolder, part_runs
 from ..populations.perturb import with_profile_set_columns
+from ..read.folder import StudyFolder, part_runs
 from ..tables import PROFILE_SET_COLUMNS
 from .delay import cell_metrics, paired_delays
 from .robustness import agreement_with, backend_rates, matched_rates, rates_by_set
@@ -73,7 +73,8 @@ def _respondent(cells: pd.DataFrame, sets: pd.DataFrame, rng: np.random.Generato
 
 
 #: the tables of each robustness role, from the part's cells and profile sets; the
-#: report's section of a role is missing (keyed by the role) when no part has it
+#: report's section of a role is missing (keyed by its table ``robust_<role>``) when no
+#: part has it
 ROLE_TABLES: dict[str, Callable[[pd.DataFrame, pd.DataFrame, np.random.Generator, int],
                                 Tables]] = {
     "mapping": _mapping, "structure": _structure, "backend": _backend,
@@ -83,19 +84,22 @@ ROLE_TABLES: dict[str, Callable[[pd.DataFrame, pd.DataFrame, np.random.Generator
 def robustness_tables(
     study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
 ) -> tuple[dict[str, pd.DataFrame], dict[str, str]]:
-    """Tables ``robust_<role>`` (and ``robust_agreement``) and why roles are missing."""
+    """Tables ``robust_<role>`` (and ``robust_agreement``) and why any is missing (by the
+    table's name)."""
     tables: dict[str, pd.DataFrame] = {}
     missing: dict[str, str] = {}
     for role, compute in ROLE_TABLES.items():
         found = None if study.study is None else study.study.part_with(role)
         got = None if found is None else part_cells(study, found[0])
         if got is None:
-            missing[role] = f"the study has no part with role {role!r} (or it has no runs)"
+            missing[f"robust_{role}"] = (f"the study has no part with role {role!r} (or it "
+                                         "has no runs)")
             continue
         tables.update(compute(*got, np.random.default_rng(rng_seed), n_boot))
     spread = seed_spread(study, rng_seed=rng_seed, n_boot=n_boot)
     if spread is None:
-        missing["seeds"] = "no study part was repeated with extra episode seed sets (`seeds`)"
+        missing["robust_seeds"] = ("no study part was repeated with extra episode seed sets "
+                                   "(`seeds`)")
     else:
         tables["robust_seeds"] = spread
     return tables, missing

@@ -11,9 +11,15 @@ replicates fixed and so misses that spread: docs/analysis.md §10).
 * **Prediction t** (the raw rule, whose rates are sums over hundreds of comparisons):
   excess δ = R − mean(R_k); its scale is s·√(1 + 1/P), s the SD between replicates
   (R is a new draw, the mean is estimated from P); t = δ / (s·√(1 + 1/P)) on P − 1
-  degrees of freedom. The two-sided 95 % interval δ ± t_{P−1, 0.975}·s·√(1 + 1/P)
-  decides: *above the null* (interval above 0), *below the null* (below 0), *no excess
-  ≥ 5 pp* (its upper end under 5 percentage points), else *undecided*. Exact when the
+  degrees of freedom. s is never taken below the binomial spread √(p(1−p)/n) of a share
+  of the replicates' n comparable comparisons at their pooled rate p
+  (:func:`binomial_floor`): a rate over few comparisons is discrete, and a handful of
+  replicates that happen to sit on the same few values (0, 1/12, …) would otherwise make
+  a tiny s and a huge t (on 20 synthetic cards of pure noise with 12 comparisons a rate,
+  4 read population-sensitive without it, tests/test_evaluate_verdict.py). The two-sided
+  95 % interval δ ± t_{P−1, 0.975}·s·√(1 + 1/P) decides: *above the null* (interval
+  above 0), *below the null* (below 0), *no excess ≥ 5 pp* (its upper end under 5
+  percentage points), else *undecided*. Exact when the
   replicate rates are normal; how close is measured on placebos (:mod:`.calibrate`).
 * **Exact permutation** (the significant rule, whose rates are small counts — mostly 0
   and skewed, where the t rejects too often): p = (1 + #{R_k ≥ R}) / (1 + P), exact for
@@ -51,13 +57,27 @@ def min_nulls_permutation(alpha: float = ALPHA) -> int:
     return int(np.ceil(1 / alpha - 1 - 1e-9))
 
 
+def binomial_floor(reversals: object, comparable: object) -> float:
+    """The least SD a null rate can have: √(p(1−p)/n̄), p the replicates' pooled rate
+    (Σ reversals + ½) / (Σ comparable + 1) and n̄ their mean number of comparable
+    comparisons; 0 without counts. ``reversals``, ``comparable``: one count per replicate."""
+    k = np.asarray(reversals, float)
+    n = np.asarray(comparable, float)
+    ok = np.isfinite(k) & np.isfinite(n) & (n > 0)
+    if not ok.any():
+        return 0.0
+    p = (k[ok].sum() + 0.5) / (n[ok].sum() + 1)
+    return float(np.sqrt(p * (1 - p) / n[ok].mean()))
+
+
 def prediction_test(observed: float, null: np.ndarray, *, alpha: float = ALPHA,
-                    min_effect: float = MIN_EFFECT) -> dict:
+                    min_effect: float = MIN_EFFECT, floor: float = 0.0) -> dict:
     """The prediction t of ``observed`` against the finite ``null`` rates (module doc).
 
     Returns ``excess``, ``t``, ``df``, ``p_t`` (two-sided), ``ci_low``, ``ci_high`` (the
     deciding 1 − ``alpha`` interval of the excess) and ``verdict``; NaN and
-    *undecided* with fewer than 3 replicates or no spread.
+    *undecided* with fewer than 3 replicates or no spread. ``floor``: the least SD between
+    replicates to take (:func:`binomial_floor`).
     """
     null = np.asarray(null, float)
     null = null[np.isfinite(null)]
@@ -67,7 +87,7 @@ def prediction_test(observed: float, null: np.ndarray, *, alpha: float = ALPHA,
            "verdict": UNDECIDED}
     if p < MIN_NULLS_T or not np.isfinite(observed):
         return out
-    scale = float(null.std(ddof=1)) * np.sqrt(1 + 1 / p)
+    scale = max(float(null.std(ddof=1)), floor) * np.sqrt(1 + 1 / p)
     if scale == 0:  # every replicate equal: no spread to judge an excess against
         return out
     t = out["excess"] / scale
@@ -79,9 +99,11 @@ def prediction_test(observed: float, null: np.ndarray, *, alpha: float = ALPHA,
             "ci_low": float(low), "ci_high": float(high), "verdict": verdict}
 
 
-def permutation_test(observed: float, null: np.ndarray, *, alpha: float = ALPHA) -> dict:
+def permutation_test(observed: float, null: np.ndarray, *, alpha: float = ALPHA,
+                     floor: float = 0.0) -> dict:
     """The exact one-sided permutation test of ``observed`` against ``null`` (module doc):
-    ``p_value``, ``n_null_above`` (replicates ≥ observed) and ``verdict``."""
+    ``p_value``, ``n_null_above`` (replicates ≥ observed) and ``verdict``. Exact whatever
+    the replicates' shape: ``floor`` is taken for a common signature and not used."""
     null = np.asarray(null, float)
     null = null[np.isfinite(null)]
     if not np.isfinite(observed) or null.size == 0:
@@ -93,13 +115,13 @@ def permutation_test(observed: float, null: np.ndarray, *, alpha: float = ALPHA)
 
 
 def decide(observed: float, null: np.ndarray, rule: str, *, alpha: float = ALPHA,
-           min_effect: float = MIN_EFFECT) -> dict:
+           min_effect: float = MIN_EFFECT, floor: float = 0.0) -> dict:
     """Both tests of one rate and the verdict of the test its ``rule`` rests on
     (``TEST_OF_RULE``: the raw rule on the prediction t, the significant rule on the exact
     permutation). Every field of both tests is returned; ``verdict`` and ``test`` are the
     deciding one's; for the permutation rule the interval is the prediction t's, shown as
     a description only."""
-    pred = prediction_test(observed, null, alpha=alpha, min_effect=min_effect)
+    pred = prediction_test(observed, null, alpha=alpha, min_effect=min_effect, floor=floor)
     perm = permutation_test(observed, null, alpha=alpha)
     test = TEST_OF_RULE[rule]
     verdict = pred["verdict"] if test == "prediction t" else perm["verdict"]

@@ -8,8 +8,11 @@ the user or a server is escaped before rich renders it (control characters as th
 codes, :func:`.app.printable`), and redacted
 (:mod:`popnavshift.redact`). Everything else is a bug and shows a traceback.
 Commands live in :mod:`.population` (personas → populations), :mod:`.simulation`
-(episodes, simulate, replay, bench), :mod:`.study` (plan, run, report) and :mod:`.audit`
-(the respondent audit).
+(episodes, simulate, replay, bench), :mod:`.plan`, :mod:`.study` (calibrate, run, report),
+:mod:`.evaluate` (evaluate, compare), :mod:`.data` (show-prompt, describe) and :mod:`.audit`
+(the respondent audit). Those modules import only typer, rich and the first layer at their
+top, and each command what it needs when it runs, so that ``--help``, ``--version`` and a
+usage error start at once (tests/test_cli_startup.py checks it).
 """
 
 from __future__ import annotations
@@ -27,11 +30,14 @@ from . import (  # noqa: F401  (register the commands)
     audit,
     data,
     evaluate,
+    plan,
     population,
     simulation,
     study,
 )
-from .app import STATE, app, say
+from .app import STATE, app, print_traceback, reflow_help, say
+
+reflow_help(app)
 
 INTERRUPTED = "[yellow]interrupted[/]: finished work is kept; run the same command to resume"
 
@@ -42,11 +48,11 @@ def main() -> None:
         result = app(standalone_mode=False, prog_name="popnavshift")
     except PopNavShiftError as exc:
         if STATE["verbose"]:
-            console.print_exception()
+            print_traceback()
         fail(str(exc))
     except (OSError, sqlite3.OperationalError) as exc:  # the machine said no: not a bug
         if STATE["verbose"]:
-            console.print_exception()
+            print_traceback()
         fail(os_error_line(exc))
     except _INTERRUPTS:
         result = 130
@@ -98,16 +104,15 @@ def os_error_line(exc: BaseException) -> str:
 def _usage_errors() -> tuple[tuple[type[BaseException], ...], tuple[type[BaseException], ...]]:
     """(usage errors, aborts) of the installed typer: recent typer vendors its own click
     (``typer._click``, whose exceptions derive from ``typer.TyperException``), older
-    ones raise click's; catch both so a usage error is never a traceback."""
+    ones raise click's; catch both so a usage error is never a traceback. An older typer
+    has imported click already; a recent one does not, and importing it would only slow
+    the start."""
     usage: list[type[BaseException]] = [typer.TyperException]
     aborts: list[type[BaseException]] = [typer.Abort]
-    try:
-        import click
-
+    click = sys.modules.get("click")
+    if click is not None:
         usage.append(click.exceptions.ClickException)
         aborts.append(click.exceptions.Abort)
-    except ImportError:  # pragma: no cover - typer without click
-        pass
     return tuple(usage), tuple(aborts)
 
 

@@ -5,9 +5,11 @@ registers them and runs the app."""
 
 from __future__ import annotations
 
+import inspect
 import logging
 import math
 import os
+import textwrap
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -38,8 +40,33 @@ STATE: dict[str, Any] = {"verbose": False}
 stdout = Console(soft_wrap=True, highlight=False)
 
 Out = Annotated[Path, typer.Option("--out", "-o", help="Study folder to write into.")]
+StudyArg = Annotated[
+    str | None,
+    typer.Argument(help="A built-in study (paper, quick) or a study YAML file. Default: paper."),
+]
+Replicates = Annotated[int | None, typer.Option(
+    "--replicates", min=1, max=999,
+    help="Extend the study to this many replicates of every null design (more placebos for "
+    "calibration, a sharper null), without re-running it: only the new runs are simulated.")]
+SeedSets = Annotated[int | None, typer.Option(
+    "--seed-sets", min=1, max=100,
+    help="Extend every part that repeats its episodes on extra seed sets (the matched pair, "
+    "its swap null, the noise floor) to this many seed sets, the study seed's included: a "
+    "tighter null for the verdicts; only the new runs are simulated.")]
+
+
+def extended(study, replicates: int | None, seed_sets: int | None):
+    """``study`` extended by ``--replicates`` and ``--seed-sets`` (as it is without them)."""
+    if replicates is None and seed_sets is None:
+        return study
+    return study.extended(replicates=replicates, seed_sets=seed_sets)
+
+
 #: more worker processes than this is a typo, not a machine (each holds ~300 MB)
 MAX_WORKERS = 512
+#: columns a table of several text columns needs to stay readable; a narrower terminal
+#: gets one block per row instead (``plan``'s power advice, ``describe``)
+WIDE = 120
 
 
 def finite_range(low: float | None = None, high: float | None = None, *, above: bool = False):
@@ -91,9 +118,29 @@ def configure_logging(verbose: bool) -> None:
         logger.removeHandler(old)
     handler = RichHandler(console=console, markup=False, show_path=False, show_time=verbose)
     handler.popnavshift_cli = True  # type: ignore[attr-defined]
-    handler.addFilter(RedactingFilter())
+    handler.addFilter(TerminalFilter())
     logger.addHandler(handler)
     logger.setLevel(logging.INFO if verbose else logging.WARNING)
+
+
+class TerminalFilter(RedactingFilter):
+    """Redacts each record's message and writes its control characters as their codes: a
+    server's error text, logged under ``-v``, must not drive the terminal either."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        super().filter(record)
+        record.msg = printable(str(record.msg))
+        return True
+
+
+def print_traceback() -> None:
+    """The current exception's traceback (``-v``), every line escaped and redacted: its
+    message may be a server's text (an OSC or a screen clear in an error body)."""
+    import traceback
+
+    text = redact("".join(traceback.format_exc()))
+    console.print(printable(text, lines=True), markup=False, highlight=False,
+                  soft_wrap=True)
 
 
 def folder(path: Path) -> Path:
@@ -131,10 +178,71 @@ def check_workers(workers: int, executor: str = "local") -> None:
                           hint=f"use at most {4 * cpus}, or --executor ray for a cluster")
 
 
-def say(text: object) -> str:
+def say(text: object, lines: bool = False) -> str:
     """``text`` (a path, a name, a server's message) made safe for the terminal: control
-    characters shown as escapes, rich markup escaped, secrets redacted."""
-    return escape(redact(printable(str(text))))
+    characters shown as escapes, rich markup escaped, secrets redacted. ``lines`` keeps
+    the line breaks of a text of several lines (a table the code formatted itself)."""
+    return escape(redact(printable(str(text), lines)))
+
+
+def prose(text: str, console: Console = stdout) -> None:
+    """Print ``text`` (markup, data already passed through :func:`say`) wrapped at the
+    terminal's width, between words (a word longer than a line, a deep path, is folded):
+    the consoles keep a line whole by default, so that an id in a table is never cut,
+    which leaves a sentence as wide as it is long."""
+    console.print(text, soft_wrap=False, highlight=False)
+
+
+def indented(text: str, console: Console = stdout, indent: int = 4) -> None:
+    """Print plain ``text`` (no markup; made printable and redacted, as :func:`say` does)
+    wrapped at the terminal's width and indented by ``indent`` spaces, a word never cut (an
+    id or a path longer than a line stays whole)."""
+    pad = " " * indent
+    wrapped = textwrap.fill(redact(printable(text)), width=max(console.width, indent + 20),
+                            initial_indent=pad, subsequent_indent=pad,
+                            break_long_words=False, break_on_hyphens=False)
+    console.print(wrapped, markup=False, highlight=False, soft_wrap=True)
+
+
+def check_controllers(*specs: str) -> None:
+    """Each of ``specs`` (a controller id, ``none`` for no robot) names a registered
+    controller, a navground behaviour or an entry point, or is a ``package.module:Class``
+    (checked when made), else UnknownNameError with a did-you-mean, case aside. Imports
+    only the registry and navground's core: a misspelt name fails at once."""
+    from ..sim.controllers import CONTROLLERS
+
+    for spec in specs:
+        if spec != "none":
+            CONTROLLERS.check_name(spec)
+
+
+def reflow(doc: str) -> str:
+    """A command's docstring as its ``--help`` should show it: each paragraph (the text
+    between blank lines) on one line, for the terminal to wrap at its width; a paragraph
+    that opens with ``\\b`` keeps its lines, each indented line joined to the one above
+    (an item of a list)."""
+    out = []
+    for para in inspect.cleandoc(doc).split("\n\n"):
+        if not para.startswith("\b"):
+            out.append(" ".join(line.strip() for line in para.splitlines()))
+            continue
+        items: list[str] = []
+        for line in para.removeprefix("\b").strip("\n").splitlines():
+            if line[:1].isspace() and items:
+                items[-1] += " " + line.strip()
+            else:
+                items.append(line.strip())
+        out.append("\n".join(items))
+    return "\n\n".join(out)
+
+
+def reflow_help(typer_app: typer.Typer) -> None:
+    """Reflow the help of every command of ``typer_app`` (:func:`reflow`): typer's rich help
+    keeps a docstring's line breaks, which a terminal narrower or wider than the source
+    shows mid-sentence."""
+    for info in typer_app.registered_commands:
+        doc = info.help or inspect.getdoc(info.callback) or ""
+        info.help = reflow(doc)
 
 
 def printable(text: str, lines: bool = False) -> str:

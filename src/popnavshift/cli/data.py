@@ -4,15 +4,15 @@ from __future__ import annotations
 
 import difflib
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import pandas as pd
 import typer
 
 from ..errors import InputError
-from ..responses.schema import LEVELS
-from ..tables import ACTION_COLUMNS, Q_COLUMNS
-from .app import app, printable, say, stdout
+from .app import WIDE, app, indented, printable, say, stdout
+
+if TYPE_CHECKING:  # the tables are read by the command, not by --help
+    import pandas as pd
 
 StudyOpt = Annotated[Path, typer.Option("--study", "-s", help="Study folder.")]
 out = stdout
@@ -63,6 +63,8 @@ def _answer(study: Path, persona_id: str, variant: str) -> str:
     if not path.exists():
         return ""
     from ..pipeline import read_table  # a damaged table is one line
+    from ..responses.schema import LEVELS
+    from ..tables import ACTION_COLUMNS, Q_COLUMNS
 
     rows = read_table(path, "responses")
     row = rows[(rows["persona_id"] == persona_id) & (rows["variant"] == variant)]
@@ -132,6 +134,9 @@ def describe(
     from ..tables import SPECS
 
     names = list(STUDY_TABLES)
+    if table is None and study is not None and not study.exists() and (
+            str(study).removesuffix(".parquet") in STUDY_TABLES):
+        study, table = None, str(study)  # `describe runs`: the table, not a folder
     if table is not None:
         name = table.removesuffix(".parquet")
         if name not in STUDY_TABLES:
@@ -139,7 +144,9 @@ def describe(
         names = [name]
     if study is not None:
         if not study.is_dir():
-            raise InputError(f"{study}: no such study folder")
+            raise InputError(f"{study}: no such study folder",
+                             hint="give a study folder, then optionally a table: "
+                             "popnavshift describe STUDY runs")
         names = [n for n in names if (study / SPECS[n].file).exists()]
         if not names:
             raise InputError(f"{study}: holds none of the table(s) {table or 'of a study'}")
@@ -174,16 +181,16 @@ def _print_table(spec, study: Path | None) -> None:
         present = [printable(n) for n in meta.schema_arrow.names]
         title = f"{study / spec.file} · {meta.metadata.num_rows} rows"
     undeclared = [n for n in present or [] if n not in spec.names]
-    if out.width < 120:  # a narrow terminal: one short block per column, not a 7-column grid
-        out.print(Text(title, style="bold"))
-        out.print(Text(f"one row per {spec.doc[4:]}"))
+    if out.width < WIDE:  # a narrow terminal: one short block per column, not a 7-column grid
+        out.print(Text(title, style="bold"))  # a path: whole
+        out.print(Text(f"one row per {spec.doc[4:]}"), soft_wrap=False)  # wrapped
         for c in spec.columns:
             head = " · ".join(x for x in (c.name, DTYPES[c.kind], c.unit, role(spec, c),
                                           f"→ {c.refers}" if c.refers else "") if x)
-            out.print(Text(head, style="bold"))
-            out.print(Text(f"    {c.doc}" + (f" (missing: {c.missing})" if c.missing else "")))
+            out.print(Text(head, style="bold"), soft_wrap=False)
+            indented(c.doc + (f" (missing: {c.missing})" if c.missing else ""), out)
         for extra in undeclared:
-            out.print(Text(f"{extra} · not declared", style="bold red"))
+            out.print(Text(f"{extra} · not declared", style="bold red"), soft_wrap=False)
         return
     grid = Table(title=Text(title), caption=Text(f"one row per {spec.doc[4:]}"))
     for head in ("column", "dtype", "unit", "key", "refers to", "missing means", "meaning"):

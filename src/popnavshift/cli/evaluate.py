@@ -2,15 +2,36 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from ..progress import console
-from .app import MAX_WORKERS, app, check_workers, default_folder, say
+from .app import (
+    MAX_WORKERS,
+    Replicates,
+    SeedSets,
+    app,
+    check_controllers,
+    check_workers,
+    default_folder,
+    extended,
+    say,
+)
 from .simulation import ParamOpt, parse_params
 
+#: The card's safety threshold (None: the card's default, evaluate.safety.SAFETY_THRESHOLD,
+#: which the help states: tests/test_evaluate_safety.py checks they agree).
+SafetyThreshold = Annotated[
+    float | None,
+    typer.Option(min=0.0, max=1.0, help="Unsafe when a counted failure (pedestrian "
+                 "collisions with the robot moving, wall contacts, controller errors) is "
+                 "above this share of the controller's runs with 95% confidence, safe when "
+                 "every one is below it: the same rule for every controller (default: 0.01, "
+                 "1% of its runs)."),
+]
 #: The study a controller is evaluated against (shared by evaluate and compare).
 BaselineStudy = Annotated[
     str | None,
@@ -58,15 +79,12 @@ def evaluate(
     check: Annotated[
         bool, typer.Option(help="Run the controller contract checker first.")
     ] = True,
-    n_boot: Annotated[int, typer.Option(min=1, help="Bootstrap resamples for the CIs.")] = 1000,
+    n_boot: Annotated[int, typer.Option(min=1, max=100_000,
+                                        help="Bootstrap resamples for the CIs.")] = 1000,
     seed: Annotated[int, typer.Option(min=0, help="Seed of the bootstrap.")] = 0,
-    safety_threshold: Annotated[
-        float | None,
-        typer.Option(min=0.0, max=1.0, help="Also read unsafe when pedestrian collisions, "
-                     "wall contacts or controller errors exceed this share of the controller's "
-                     "runs, whatever the baselines do (off by default: the verdict compares "
-                     "each failure with the least safe baseline on the same runs)."),
-    ] = None,
+    safety_threshold: SafetyThreshold = None,
+    replicates: Replicates = None,
+    seed_sets: SeedSets = None,
 ) -> None:
     """Evaluate CONTROLLER under every population of a study, next to the baselines.
 
@@ -76,22 +94,36 @@ def evaluate(
 
     Example: popnavshift evaluate my_pkg.controller:MyBehavior --study quick
     """
+    given = None if baselines is None else tuple(
+        b.strip() for b in baselines.split(",") if b.strip())
+    check_controllers(controller, *(given or ()))  # a misspelt name fails at once
+    from ..controller_ids import controller_id
     from ..engine.lock import study_lock
     from ..engine.ownership import claim_folder
-    from ..evaluate import BASELINES, make_card
-    from ..evaluate import evaluate as run_evaluation
-    from ..sim.controllers.registry import controller_id
+    from ..evaluate.card_files import check_out, current_card
+    from ..paper import PAPER_CONTROLLERS as BASELINES  # the cards' default baselines
     from .app import folder
 
     check_workers(workers)
     s, default_dir = _baseline_study(study)
+    s = extended(s, replicates, seed_sets)
+    if out is not None:  # before anything is made: never the study's folder, and writable
+        check_out(out, study_dir or default_dir)
     base = folder(study_dir or default_dir)
     params = parse_params(param)
     identity = controller_id(controller, params) if params else controller
-    names = BASELINES if baselines is None else tuple(
-        b.strip() for b in baselines.split(",") if b.strip())
+    names = BASELINES if given is None else given
     with study_lock(base):  # the baseline study's folder gets runs and the card: one writer
         claim_folder(base, s, force=None, option="--study-dir")
+        card, why = current_card(identity, s, base, out, baselines=names, n_boot=n_boot,
+                                 seed=seed, safety_threshold=safety_threshold)
+        if not why:  # nothing to run and nothing to write: the card stands
+            console.print(f"card is current, reused → {say(card / 'card.html')}",
+                          soft_wrap=True, highlight=False)
+            return
+        from ..evaluate.run import evaluate as run_evaluation
+        from ..evaluate.run import make_card
+
         ev = run_evaluation(identity, s, base, out, baselines=names, workers=workers,
                             run_check=check, log=lambda msg: console.print(
                                 say(msg), highlight=False, soft_wrap=True))
@@ -127,39 +159,119 @@ def compare(
     workers: Annotated[
         int, typer.Option("--workers", "-w", min=1, max=MAX_WORKERS, help="Worker processes.")
     ] = 2,
-    n_boot: Annotated[int, typer.Option(min=1, help="Bootstrap resamples of a new card.")] = 1000,
-    seed: Annotated[int, typer.Option(min=0, help="Seed of a new card's bootstrap.")] = 0,
+    n_boot: Annotated[int, typer.Option(min=1, max=100_000,
+                                        help="Bootstrap resamples of the cards.")] = 1000,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the cards' bootstrap.")] = 0,
+    safety_threshold: SafetyThreshold = None,
+    baselines: Annotated[
+        str | None,
+        typer.Option(help="Comma-separated controllers each card compares with "
+                     "(default: the built-in controllers)."),
+    ] = None,
+    replicates: Replicates = None,
+    seed_sets: SeedSets = None,
 ) -> None:
     """Put the robustness cards of several controllers side by side: one page, one table.
 
     A controller without a card in STUDY_DIR/evaluate is evaluated first (cached runs
-    are reused); an existing card is read.
+    are reused); an existing card is read when it was made under the same rules
+    (--n-boot, --seed, --safety-threshold, --baselines, the study's configuration, its
+    runs and the code), and made again otherwise, with one line saying why.
 
     Example: popnavshift compare reactive early_yield robot_orca HRVO
     """
+    check_controllers(*controllers)  # a misspelt name fails at once
+    _side_by_side(controllers, study, study_dir, out, "compare", workers=workers, n_boot=n_boot,
+                  seed=seed, safety_threshold=safety_threshold, baselines=baselines,
+                  replicates=replicates, seed_sets=seed_sets)
+
+
+@app.command()
+def leaderboard(
+    extra: Annotated[
+        list[str] | None,
+        typer.Argument(help="Plug-ins or package.module:Class controllers to add to the "
+                       "rows (the study's controllers and every navground behaviour are "
+                       "always in)."),
+    ] = None,
+    study: BaselineStudy = None,
+    study_dir: Annotated[
+        Path | None,
+        typer.Option("--study-dir", "-d", help="Folder of the study; its cards in "
+                     "STUDY_DIR/evaluate are reused (default: as for evaluate).")] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", "-o", help="The page, FILE.html; FILE.csv, .md, .tex and .png "
+                     "go beside it (default: STUDY_DIR/leaderboard/leaderboard.html).")] = None,
+    workers: Annotated[
+        int, typer.Option("--workers", "-w", min=1, max=MAX_WORKERS, help="Worker processes.")
+    ] = 2,
+    n_boot: Annotated[int, typer.Option(min=1, max=100_000,
+                                        help="Bootstrap resamples of the cards.")] = 1000,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the cards' bootstrap.")] = 0,
+    safety_threshold: SafetyThreshold = None,
+    replicates: Replicates = None,
+    seed_sets: SeedSets = None,
+) -> None:
+    """Every controller you can name, in one table: the study's controllers, every
+    behaviour registered in navground (Dummy, HL, HRVO, ORCA, SocialForce, and any a
+    plug-in registers) and the plug-ins given, each with its robustness verdict against
+    its own null runs and its safety label under one rule.
+
+    Each controller is evaluated as `evaluate` does (cached runs and current cards are
+    reused; a new controller runs on the study's populations and their nulls) and the rows
+    are written as one page with CSV, Markdown and a LaTeX table for a paper. Two
+    navground names are left out: the empty name (the base Behavior) and PyDummy (the same
+    motion as Dummy).
+
+    Example: popnavshift leaderboard my_pkg.controller:MyBehavior
+    """
+    check_controllers(*(extra or ()))  # a misspelt name fails at once
+    _side_by_side(tuple(extra or ()), study, study_dir, out, "leaderboard", workers=workers,
+                  n_boot=n_boot, seed=seed, safety_threshold=safety_threshold, baselines=None,
+                  replicates=replicates, seed_sets=seed_sets)
+
+
+def _side_by_side(names: Sequence[str], study: str | None, study_dir: Path | None,
+                  out: Path | None, kind: str, *, workers: int, n_boot: int, seed: int,
+                  safety_threshold: float | None, baselines: str | None,
+                  replicates: int | None, seed_sets: int | None) -> None:
+    """``compare`` (``names``: the controllers) or ``leaderboard`` (``names``: the extra
+    rows): evaluate, compare and write the page STUDY_DIR/<kind>/<kind>.html or ``out``."""
     from ..engine.lock import study_lock
     from ..engine.ownership import claim_folder
-    from ..errors import ConfigError
+    from ..evaluate import BASELINES
     from ..evaluate.compare import compare as run_compare
-    from ..evaluate.compare_page import write_comparison
+    from ..evaluate.compare_page import check_page, write_comparison
+    from ..evaluate.leaderboard import build_leaderboard
     from .app import folder
 
     check_workers(workers)
-    if out is not None and out.suffix != ".html":
-        raise ConfigError(f"--out must name an .html page, got {str(out)!r}",
-                          hint=f"e.g. --out {out.with_suffix('.html')}")
     s, default_dir = _baseline_study(study)
+    s = extended(s, replicates, seed_sets)
+    page = out or (study_dir or default_dir) / kind / f"{kind}.html"
+    check_page(page, ours=out is None)  # before any work: writable, over nothing else
     base = folder(study_dir or default_dir)
     with study_lock(base):  # cards are evaluated into the baseline folder: one writer
         claim_folder(base, s, force=None, option="--study-dir")
-        comparison = run_compare(controllers, s, base, workers=workers, n_boot=n_boot,
-                                 seed=seed, log=lambda msg: console.print(
-                                     say(msg), highlight=False, soft_wrap=True))
-        with console.status("writing the comparison…"):
-            paths = write_comparison(comparison, out or base / "compare" / "compare.html")
+        run = build_leaderboard if kind == "leaderboard" else run_compare
+        comparison = run(names, s, base, workers=workers, n_boot=n_boot,
+                         seed=seed, safety_threshold=safety_threshold,
+                         baselines=_baselines(baselines, BASELINES),
+                         log=lambda msg: console.print(say(msg), highlight=False,
+                                                       soft_wrap=True))
+        with console.status(f"writing the {kind}…"):
+            paths = write_comparison(comparison, page)
     console.print(f"page → {say(paths['html'])}\ntable → {say(paths['csv'])} "
                   f"(also {paths['md'].suffix} and {paths['tex'].suffix})", soft_wrap=True,
                   highlight=False)
+
+
+def _baselines(option: str | None, default: tuple[str, ...]) -> tuple[str, ...]:
+    """``--baselines a,b`` as names (the default when not given)."""
+    if option is None:
+        return default
+    return tuple(b.strip() for b in option.split(",") if b.strip())
 
 
 MADE_STUDY = Path("study")  # where `make run` writes the paper study
@@ -168,8 +280,8 @@ MADE_STUDY = Path("study")  # where `make run` writes the paper study
 def _baseline_study(name: str | None):
     """The study to evaluate against and its default folder: the one named, else the
     study `make run` left in ./study (its manifest holds the configuration), else quick."""
-    from ..engine.store import read_manifest
-    from ..engine.study import load_study, study_from_dict
+    from ..design.study import load_study, study_from_dict
+    from ..read.checks import read_manifest
 
     manifest = MADE_STUDY / "manifest.json"
     if name is None and manifest.exists():

@@ -10,7 +10,6 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
-from ..engine.lock import study_lock
 from ..errors import ConfigError
 from ..progress import console
 from .app import Out, app, finite_range, folder, say
@@ -23,7 +22,8 @@ def _settings(personas: dict[str, Any] | None = None, respondent: dict[str, Any]
     naming the option), the rest as given (``None``: the default)."""
     from pydantic import ValidationError
 
-    from ..pipeline import PersonaSource, PopulationSettings, RespondentSpec
+    from ..design.specs import PersonaSource, RespondentSpec
+    from ..pipeline import PopulationSettings
 
     def model(cls, given: dict[str, Any]):
         try:
@@ -50,6 +50,17 @@ def _respondent_options(api_key_env: str | None, **given: Any) -> dict[str, Any]
     if api_key_env is not None:
         opts["api_key_env"] = None if api_key_env.strip().lower() in ("", "none") else api_key_env
     return opts
+
+
+def json_option(name: str, text: str | None) -> Any:
+    """The JSON value of option ``name`` (None when not given); ConfigError naming it."""
+    if text is None:
+        return None
+    try:
+        return json.loads(text)
+    except ValueError as exc:
+        raise ConfigError(f"{name}: not JSON ({exc})",
+                          hint=f"""e.g. {name} '{{"cache_prompt": false}}'""") from None
 
 
 def _opt(help_: str, **kw: Any) -> Any:
@@ -102,6 +113,7 @@ def personas(
     From a release, minors (by age_bracket) are never sampled; personas.json records
     what each step dropped and the source mix.
     """
+    from ..engine.lock import study_lock
     from ..engine.runner import run_stage
     from ..pipeline import run_personas
 
@@ -190,8 +202,24 @@ def probe(
     ] = None,
     deadline: Annotated[
         float | None,
-        _opt("Most seconds one request may take, retries and waits included.",
+        _opt("Most seconds the whole probe stage may take: the model check, every call "
+             "and wait, calls in flight; what was answered is cached.",
              callback=finite_range(0, above=True)),
+    ] = None,
+    extra_body: Annotated[
+        str | None,
+        _opt("JSON object of server-specific request fields, e.g. '{\"cache_prompt\": "
+             "false}' for reproducible llama.cpp answers (docs/llm.md).")
+    ] = None,
+    model_sha256: Annotated[
+        str | None,
+        _opt("sha256 of the served model file, when you know it: part of the model's "
+             "identity in the cache and the records.")
+    ] = None,
+    fingerprint: Annotated[
+        bool | None,
+        _opt("Ask the fixed canary prompts first, so a different model behind the same name "
+             "is detected (default on).")
     ] = None,
     matched_n: Annotated[
         int, typer.Option(min=1, help="Matched sample size (deadline re-ask).")
@@ -204,6 +232,7 @@ def probe(
     pressure set to Deadline. Network respondents cache in OUT/cache/llm.sqlite,
     so a second run makes no calls. Invalid records are listed, never dropped.
     """
+    from ..engine.lock import study_lock
     from ..engine.runner import run_stage
 
     out = folder(out)
@@ -213,6 +242,8 @@ def probe(
         timeout=timeout, max_retries=max_retries, max_reasks=max_reasks, max_tokens=max_tokens,
         ready_timeout=ready_timeout, max_consecutive_failures=max_failures,
         max_retry_after=max_retry_after, deadline=deadline,
+        extra_body=json_option("--extra-body", extra_body), model_sha256=model_sha256,
+        fingerprint=fingerprint,
     )
     if respondent == "rule":
         opts = {k: v for k, v in opts.items() if k == "seed"}
@@ -247,6 +278,7 @@ def profiles(
     ] = None,
 ) -> None:
     """Map responses to the 7 motion parameters; write profiles.parquet."""
+    from ..engine.lock import study_lock
     from ..engine.runner import run_stage
 
     out = folder(out)
@@ -267,6 +299,7 @@ def populations(
     seed: Annotated[int, typer.Option(min=0, help="Seed of the matched sample.")] = 0,
 ) -> None:
     """Build the 8 population conditions; write populations.parquet and profile figures."""
+    from ..engine.lock import study_lock
     from ..engine.runner import run_stage
 
     out = folder(out)

@@ -11,7 +11,7 @@ from rich.table import Table
 
 from ..errors import ConfigError, UnknownNameError
 from ..progress import console
-from .app import app, say, stdout
+from .app import app, check_controllers, prose, say, stdout
 
 StudyDir = Annotated[
     Path,
@@ -70,10 +70,10 @@ def _rebuild(folder: Path, episode: str, population: str, mapping: str, controll
              backend: str, seed: int, record: bool = False):
     """Simulate one run of the study in ``folder`` (its populations are built with the
     default settings if missing) by :func:`popnavshift.engine.rebuild.rebuild_run`."""
+    from ..design.study import Study
     from ..engine.lock import study_lock
     from ..engine.rebuild import population_members, rebuild_run
     from ..engine.runner import population_settings, run_stages
-    from ..engine.study import Study
     from ..episodes.specs import get_episode
     from ..errors import InputError, UnknownNameError
     from ..pipeline import read_table
@@ -101,12 +101,13 @@ def _rebuild(folder: Path, episode: str, population: str, mapping: str, controll
 
 def _controller(name: str, params: dict[str, Any]) -> str:
     """The controller id of ``name`` with ``params`` (``none``: the no-robot baseline)."""
-    from ..sim.controllers.registry import controller_id
+    from ..controller_ids import controller_id
 
     if name == "none":
         if params:
             raise ConfigError("--param makes no sense with --controller none")
         return name
+    check_controllers(name)  # a misspelt name fails before the study folder is read
     return controller_id(name, params)  # names, entry points, package.module:Class
 
 
@@ -237,7 +238,7 @@ def bench(
     from ..sim.bench import format_bench, run_bench
 
     result = run_bench(n_per_scene=n_per_scene, repeats=repeats, profile=profile)
-    console.print(say(format_bench(result)))
+    prose(say(format_bench(result), lines=True))  # the command's output: stdout, its lines
     if json_path is not None:
         from ..io import write_json
 

@@ -1,8 +1,7 @@
-"""Study commands: plan, run, report."""
+"""Study commands: calibrate, run, report (``plan`` is :mod:`.plan`)."""
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 from typing import Annotated
@@ -12,154 +11,19 @@ from rich.table import Table
 
 from ..errors import InputError
 from ..progress import console
-from .app import MAX_WORKERS, app, check_workers, default_folder, folder, say, stdout
-
-StudyArg = Annotated[
-    str | None,
-    typer.Argument(help="A built-in study (paper, quick) or a study YAML file. Default: paper."),
-]
-
-
-@app.command()
-def plan(
-    study: StudyArg = None,
-    json_out: Annotated[bool, typer.Option("--json", help="Print the counts as JSON.")] = False,
-    from_dir: Annotated[
-        Path | None,
-        typer.Option("--from", help="A finished study folder (a pilot) whose report gives the "
-                     "power advice (default: the study's own output folder, if it has one)."),
-    ] = None,
-    report: Annotated[bool, typer.Option(
-        help="Check that the report can be written too, as `run` does by default.")] = True,
-    out: Annotated[Path | None, typer.Option(
-        "--out", "-o", help="The study folder `run` would write (default: the study's own "
-        "folder): how many runs it would simulate there.")] = None,
-) -> None:
-    """Print the run counts of a study, per part (nothing is run), and what would decide
-    each undecided headline rate (more seed sets, more null replicates, or nothing).
-
-    The advice gives the runs and minutes it costs.
-
-    The advice comes from a study that has already run (its report's
-    tables/evidence_power.csv, measured on its own replicate curve and nulls): run a pilot,
-    then plan the real study with --from, e.g. `popnavshift plan paper --from study-pilot`.
-    """
-    from ..engine.plan import count_runs
-    from ..engine.study import load_study
-    from ..engine.validate import validate_study
-    from ..episodes.specs import all_episodes
-
-    s = load_study(study or "paper")
-    validate_study(s, all_episodes(s.seed), report=report)
-    counts = count_runs(s, all_episodes(s.seed))
-    if from_dir is not None:
-        check_pilot(from_dir)
-    target = out or default_folder(s.name)
-    pilot = from_dir or target
-    advice = power_advice(pilot / "report" / "tables" / "evidence_power.csv")
-    pending = _pending(s, target)
-    if json_out:
-        typer.echo(json.dumps({"study": s.name, "parts": counts, "folder": str(target),
-                               "pending": None if pending is None else vars(pending),
-                               "power": advice.to_dict("records") if advice is not None
-                               else None}, indent=2, default=str))
-        return
-    t = Table("part", "episodes", "robot runs", "no-robot runs", "total",
-              title=f"study {say(s.name)}")
-    for name, c in counts.items():
-        t.add_row(
-            say(name),
-            str(c.get("episodes", "")),
-            f"{c['robot_runs']:,}",
-            f"{c['no_robot_runs']:,}",
-            f"{c['total']:,}",
-        )
-    stdout.print(t)
-    stdout.print("'distinct' is what a run executes: parts share identical runs.")
-    stdout.print(_pending_text(target, pending), highlight=False)
-    if advice is None:
-        stdout.print(f"power: no estimate yet ({say(pilot)} has no report). Run a "
-                      "pilot, e.g. `popnavshift run pilot` (the matched pair and its swap null "
-                      "on 2 seed sets), then `popnavshift plan "
-                      f"{say(study or 'paper')} --from study-pilot`.", highlight=False)
-        return
-    p = Table("comparison", "metric", "rule", "excess", "verdict now", "what would decide it",
-              title=f"power (from {say(pilot)})")
-    for r in advice.itertuples(index=False):
-        p.add_row(say(r.comparison), say(r.metric), say(r.rule), f"{100 * r.excess:+.1f} pp",
-                  say(r.verdict), say(advice_text(r)))
-    stdout.print(p)
-    stdout.print("what would decide it: the fewest seed sets and null replicates that decide the "
-                  "verdict with 80% power if the excess stays at its estimate, with the null's "
-                  "spread falling with seed sets as the pilot's own replicate curve measured; "
-                  "add them as `seeds:` and `replicates:` to the parts that run the comparison "
-                  "and its null.", highlight=False)
-
-
-def _pending(study, folder: Path):
-    """What `run` would simulate in ``folder`` (None: no study tables there yet)."""
-    from ..engine.pending import has_study_tables, pending_runs
-
-    return pending_runs(study, folder) if has_study_tables(folder) else None
-
-
-def _pending_text(folder: Path, pending) -> str:
-    """The pending count in words."""
-    if pending is None:
-        return f"{say(folder)} holds no study yet: `run` simulates every distinct run."
-    if pending.execute is None:
-        return (f"in {say(folder)}: the {pending.stale} stage would run again first, so which "
-                f"of the {pending.planned:,} runs change is known only after it (at most all).")
-    return (f"in {say(folder)}: `run` would simulate {pending.execute:,} new runs and keep "
-            f"{pending.kept:,} it already holds with the same inputs.")
-
-
-def advice_text(r) -> str:
-    """One power row's advice in words (runs are an upper bound: identical runs repeat)."""
-    if r.limit == "decided" or r.runs_needed != r.runs_needed:
-        return str(r.limit)
-    minutes = f", ~{r.minutes_needed:.0f} min" if r.minutes_needed == r.minutes_needed else ""
-    sets = int(r.seed_sets_needed)
-    return (f"{r.limit}: {sets} seed set{'s' if sets != 1 else ''}, {int(r.nulls_needed)} null "
-            f"replicates (+{int(r.runs_needed):,} runs{minutes})")
-
-
-def power_advice(path: Path):
-    """The power table a study's report wrote (None if there is none or it predates the
-    current columns)."""
-    import pandas as pd
-
-    if not path.is_file():
-        return None
-    cols = ["comparison", "metric", "rule", "excess", "verdict", "limit", "seed_sets_needed",
-            "nulls_needed", "runs_needed", "minutes_needed"]
-    numbers = cols[3:4] + cols[6:]
-    try:
-        table = pd.read_csv(path)
-    except (ValueError, UnicodeDecodeError) as exc:  # pandas' ParserError is a ValueError
-        raise InputError(f"{path} is damaged (not a readable CSV: {exc})",
-                         hint="write the report again: popnavshift report FOLDER") from None
-    if not set(cols) <= set(table.columns):
-        return None
-    table = table[cols]
-    if not all(pd.api.types.is_numeric_dtype(table[c]) for c in numbers):
-        raise InputError(f"{path} is damaged (a count or rate that is not a number)",
-                         hint="write the report again: popnavshift report FOLDER")
-    return table
-
-
-def check_pilot(path: Path) -> None:
-    """``plan --from``: a folder that a study ran in, or one clear line."""
-    from ..engine.ownership import folder_owner
-
-    if not path.exists():
-        raise InputError(f"--from {path}: no such folder", hint="give the --out of a pilot run")
-    if not path.is_dir():
-        raise InputError(f"--from {path} is a file, not a study folder",
-                         hint="give the --out of a pilot run")
-    if folder_owner(path) is None:
-        raise InputError(f"--from {path} holds no PopNavShift study",
-                         hint="give the --out of a pilot run, e.g. study-pilot")
+from .app import (
+    MAX_WORKERS,
+    Replicates,
+    SeedSets,
+    StudyArg,
+    app,
+    check_workers,
+    default_folder,
+    extended,
+    folder,
+    say,
+    stdout,
+)
 
 
 @app.command()
@@ -179,18 +43,22 @@ def calibrate(
     A placebo takes one null replicate as if it were the observed populations and the other
     replicates as its null: no population effect, so every claim is false. First the
     headline table as the report decides it (all its rates together), then each test.
+
     Status: 'within' (the interval reaches down to the nominal level and rules out twice
     it), 'above nominal', or 'too few placebos to tell'. Exit 1 if the study ran no null.
+    The tables go to stdout (`popnavshift calibrate study > calibration.txt`).
+
     Example: `popnavshift calibrate study`.
     """
     from ..analysis.calibrate import TESTS
-    from ..engine.store import check_study_folder
+    from ..read.checks import check_study_folder
 
     check_study_folder(study_dir)
     cal = _calibration(study_dir, fresh)
     if cal is None or cal.empty:
         console.print(f"{say(study_dir)} ran no null replicates: nothing to calibrate (a study "
-                      "needs a `null_design` part, as the paper study has).", highlight=False)
+                      "needs a `null_design` part, as the paper study has).", highlight=False,
+                      soft_wrap=True)
         raise typer.Exit(1)
     per_comp = sorted(set(cal["comparison"]) - {"all", "table"}) if by_comparison else []
     scopes = [x for x in ("table", *per_comp, "all") if (cal["comparison"] == x).any()]
@@ -207,50 +75,67 @@ def calibrate(
                        if r.kind == "false positive" else r.kind)
             t.add_row(f"{say(r.test)} ({say(r.rule)})", say(r.claim), f"{r.claims}/{r.placebos}",
                       rate, verdict)
-        console.print(t)
+        stdout.print(t)
     fp = cal[cal["comparison"].isin(["all", "table"]) & (cal["kind"] == "false positive")]
     bad = fp[fp["status"] == "above nominal"]
     checked = fp[fp["placebos"] > 0]
     unsure = checked[checked["status"] == "too few placebos to tell"]
     if bad.empty:
-        console.print(f"[green]no verdict rule claims more than its nominal level[/] on this "
-                      f"study's placebos ({len(checked)} rules checked; every Clopper–Pearson "
-                      "interval reaches down to its nominal level).", highlight=False)
+        stdout.print(f"[green]no verdict rule claims more than its nominal level[/] on this "
+                     f"study's placebos ({len(checked)} rules checked; every Clopper–Pearson "
+                     "interval reaches down to its nominal level).", highlight=False)
     else:
-        console.print("[red]above its nominal level[/]: "
-                      + "; ".join(f"{say(r.test)}: {say(r.claim)}" for r in bad.itertuples()),
-                      highlight=False)
+        stdout.print("[red]above its nominal level[/]: "
+                     + "; ".join(f"{say(r.test)}: {say(r.claim)}" for r in bad.itertuples()),
+                     highlight=False)
     if not unsure.empty:
-        console.print("too few placebos to rule out twice the nominal rate for: "
-                      + "; ".join(f"{say(r.test)}: {say(r.claim)}" for r in unsure.itertuples())
-                      + " (more null replicates would tell; the test suite checks the rules on "
-                      "thousands of synthetic designs).", highlight=False)
+        stdout.print("too few placebos to rule out twice the nominal rate for: "
+                     + "; ".join(f"{say(r.test)}: {say(r.claim)}" for r in unsure.itertuples())
+                     + " (more null replicates would tell; the test suite checks the rules on "
+                     "thousands of synthetic designs).", highlight=False)
     unchecked = sorted(set(TESTS) - set(checked["test"]))
     if unchecked:
-        console.print("no placebo could make a claim for: "
-                      + "; ".join(f"{n} (it needs {TESTS[n].min_nulls + 1} null replicates)"
-                                  for n in unchecked) + ".", highlight=False)
+        stdout.print("no placebo could make a claim for: "
+                     + "; ".join(f"{n} (it needs {TESTS[n].min_nulls + 1} null replicates)"
+                                 for n in unchecked) + ".", highlight=False)
 
 
 def _calibration(study_dir: Path, fresh: bool):
-    """The report's calibration table when the report is newer than the runs, else computed
-    from the study's tables (the same code the report runs)."""
-    import pandas as pd
-
+    """The report's calibration table when the report is intact (every file as its build
+    wrote it) and newer than the runs, else computed from the study's tables (the same code
+    the report runs), with one line saying why the report's could not be used."""
     from ..analysis.calibrate import COLUMNS
+    from ..io import read_csv
+    from ..read.access import report_intact
 
     csv = study_dir / "report" / "tables" / "evidence_calibration.csv"
     runs = study_dir / "runs.parquet"
-    if not fresh and csv.is_file() and csv.stat().st_mtime >= runs.stat().st_mtime:
-        table = pd.read_csv(csv)
-        if set(COLUMNS) <= set(table.columns):  # a report of an older version: recompute
+    if not fresh and csv.is_file() and runs.is_file() and (
+            csv.stat().st_mtime >= runs.stat().st_mtime):
+        why = report_intact(study_dir)
+        table = read_csv(csv) if not why else None
+        if table is not None and set(COLUMNS) <= set(table.columns):
+            _check_numbers(table, csv)
             return table
+        why = why or "the report's calibration table is of an older version"
+        console.print(f"computing the calibration again: {say(why)}", highlight=False,
+                      soft_wrap=True)
     from ..analysis.study_evidence import evidence_tables
-    from ..engine.folder import read_study_folder
+    from ..read.folder import open_study
 
     with console.status("running the placebos on the study's nulls…"):
-        tables, _ = evidence_tables(read_study_folder(study_dir))
+        tables, _ = evidence_tables(open_study(study_dir))
     return tables.get("evidence_calibration")
+
+
+def _check_numbers(table, path: Path) -> None:
+    """InputError unless the calibration's counts and rates are numbers."""
+    import pandas as pd
+
+    numbers = ("nominal", "placebos", "claims", "rate", "cp_low", "cp_high")
+    if not all(pd.api.types.is_numeric_dtype(table[c]) for c in numbers):
+        raise InputError(f"{path} is damaged (a count or rate that is not a number)",
+                         hint="write the report again: popnavshift report FOLDER")
 
 
 @app.command()
@@ -292,6 +177,8 @@ def run(
     force: Annotated[bool, typer.Option(
         "--force", help="Write into --out even when it holds another study or other files.")
                      ] = False,
+    replicates: Replicates = None,
+    seed_sets: SeedSets = None,
 ) -> None:
     """Run every stage of a study that is not already done; resumable.
 
@@ -299,14 +186,14 @@ def run(
     again: finished work is kept and verified, the rest is done, and the tables come
     out identical to an uninterrupted run.
     """
+    from ..design.study import load_study
     from ..engine.lock import study_lock
     from ..engine.ownership import claim_folder
-    from ..engine.study import load_study
     from ..engine.validate import validate_study
     from ..episodes.specs import all_episodes
 
     check_workers(workers, executor)
-    s = load_study(study or "paper")
+    s = extended(load_study(study or "paper"), replicates, seed_sets)
     if samples is not None:  # part of the study as run: its config hash and manifest say so
         s = s.model_copy(update={"respondent": s.respondent.model_copy(
             update={"samples": samples})})
@@ -347,14 +234,16 @@ def _run(s, target: Path, workers: int, executor: str, address: str | None,
             console.print(f"report is up to date: {say(target / 'report' / 'index.html')}")
         else:
             if report_.nothing_to_do:
-                console.print(f"rebuilding the report: {why}", highlight=False)
+                console.print(f"rebuilding the report: {say(why)}", highlight=False,
+                              soft_wrap=True)
             _write_report(target)
 
 
 @app.command("report")
 def report_cmd(
     study_dir: Annotated[Path, typer.Argument(help="A study folder written by `popnavshift run`.")],
-    n_boot: Annotated[int, typer.Option(min=1, help="Bootstrap resamples for the CIs.")] = 1000,
+    n_boot: Annotated[int, typer.Option(min=1, max=100_000,
+                                        help="Bootstrap resamples for the CIs.")] = 1000,
 ) -> None:
     """Write DIR/report/index.html with every table (CSV) and figure (PNG, SVG)."""
     from ..engine.lock import study_lock
@@ -366,7 +255,7 @@ def report_cmd(
 
 
 def _write_report(study_dir: Path, n_boot: int = 1000) -> None:
-    from ..engine.store import check_study_folder
+    from ..read.checks import check_study_folder
     from ..report.build import build_report
 
     check_study_folder(study_dir)

@@ -16,8 +16,9 @@ from typing import NamedTuple
 
 import pandas as pd
 
+from ..design.plan import Run
+from .batches import Batch, batches
 from .executors import execute
-from .plan import Batch, Run, batches
 from .run_inputs import Key, run_inputs
 from .stamps import code_stamps
 from .store import RunStore

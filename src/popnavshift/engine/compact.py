@@ -25,8 +25,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from ..io import atomic_path
-from ..populations.identity import PopulationSpec
-from ..populations.nulls import with_population_columns
+from ..populations.identity import PopulationSpec, with_population_columns
 from ..populations.perturb import with_profile_set_columns
 from ..tables import PEDESTRIANS, RUN_KEY, RUNS, check_table
 
@@ -116,7 +115,10 @@ def _sorted_chunk(frames: list[pd.DataFrame], name: str, key: list[str],
             df["error"] = None
         df["error"] = df["error"].astype("string")  # all-None would be Arrow's null type
         keys = zip(*(df[c] for c in RUN_KEY), strict=True)
-        df["run_inputs"] = [inputs.get(k) for k in keys]
+        digests = [inputs.get(k) for k in keys]
+        # where the worker puts it (before error), also for rows stored before the column
+        df = df.drop(columns="run_inputs", errors="ignore")
+        df.insert(df.columns.get_loc("error"), "run_inputs", digests)
     df = with_profile_set_columns(df)  # rows stored before those columns existed
     df = with_population_columns(df, specs)
     df = df.sort_values(key, kind="stable").reset_index(drop=True)

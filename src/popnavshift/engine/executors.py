@@ -18,7 +18,7 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 
 from ..errors import ConfigError, UnknownNameError
 from ..progress import run_progress
-from .plan import Batch
+from .batches import Batch
 from .store import RunStore
 from .worker import Context, init_worker, run_batch
 

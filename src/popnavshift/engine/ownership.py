@@ -11,12 +11,13 @@ and the temporary files a killed writer left behind are removed.
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
+from ..design.study import Study
 from ..errors import ConfigError
 from ..io import write_json
 from .lock import LOCK_NAME
-from .study import Study
 
 #: the study a folder belongs to: written by the first run, before any stage
 MARK = "study.json"
@@ -62,12 +63,17 @@ def _has_files(folder: Path) -> bool:
 
 
 def clean_leftovers(folder: Path) -> int:
-    """Remove the temporary files (``.<name>.<random>.tmp``, see :mod:`popnavshift.io`)
-    that a writer killed mid-write left anywhere in ``folder``; return how many. Only
-    under the folder's lock: a live writer's temporary file is never touched."""
+    """Remove the temporary files and folders (``.<name>.<random>.tmp``, see
+    :mod:`popnavshift.io` and :mod:`popnavshift.outputs`) that a writer killed mid-write
+    left anywhere in ``folder``; return how many. Only under the folder's lock: a live
+    writer's temporary file is never touched."""
     removed = 0
-    for path in folder.rglob(".*.tmp"):
-        if path.is_file():
+    for path in sorted(folder.rglob(".*.tmp")):
+        if path.is_dir():
+            shutil.rmtree(path, ignore_errors=True)
+        elif path.is_file():
             path.unlink(missing_ok=True)
-            removed += 1
+        else:
+            continue  # inside a folder removed above
+        removed += 1
     return removed

@@ -14,14 +14,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..design.plan import plan_study
+from ..design.study import Study
 from ..episodes.specs import all_episodes
 from ..pipeline import build_populations, read_table
+from ..read.checks import read_stamps, readable_parquet
 from .batch_plan import plan_batches
-from .plan import plan_study
 from .runner import population_settings, stored_inputs
 from .stages import STAGES, stage_stamps
-from .store import RunStore, read_stamps, readable_parquet
-from .study import Study
+from .store import RunStore
 
 
 @dataclass(frozen=True)

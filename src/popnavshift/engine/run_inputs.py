@@ -25,8 +25,8 @@ from collections.abc import Iterable, Mapping
 import numpy as np
 import pandas as pd
 
+from ..design.plan import Run
 from ..episodes.specs import EpisodeSpec, get_episode, slot_members
-from .plan import Run
 from .rebuild import member_arrays
 
 #: (episode, population, controller, backend, mapping): a run's key (``Run.key``)

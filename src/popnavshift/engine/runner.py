@@ -19,6 +19,8 @@ from typing import Any
 
 import pandas as pd
 
+from ..design.plan import count_runs, plan_study
+from ..design.study import Study
 from ..episodes.specs import all_episodes
 from ..errors import ConfigError, InputError
 from ..io import write_json
@@ -26,14 +28,13 @@ from ..pipeline import PopulationSettings, read_table
 from ..populations.build import check_members
 from ..populations.perturb import ProfileSet
 from ..progress import console
+from ..read.checks import read_manifest, read_stamps, readable_parquet
 from ..responses.probes import PROBE_SET_HASH
 from ..tables import RUN_KEY
 from ..version import __version__
 from .batch_plan import plan_batches, run_plan
-from .plan import count_runs, plan_study
 from .stages import STAGES, Stage, legacy_batch_inputs, stage_stamps
-from .store import RunStore, read_manifest, read_stamps, readable_parquet
-from .study import Study
+from .store import RunStore
 from .validate import profile_mappings, validate_study
 from .worker import Context
 

@@ -1,7 +1,7 @@
 """Code stamps: which code a run executes, so that edited code is never reused.
 
 A batch's id hashes the code stamps of the controllers it runs
-(:func:`popnavshift.engine.plan.batches`), and the compacted tables record them
+(:func:`popnavshift.engine.batches.batches`), and the compacted tables record them
 (:meth:`popnavshift.engine.store.RunStore.carried`): a change to the simulator or
 to a controller's module reruns exactly the runs that execute it.
 """
@@ -22,8 +22,14 @@ from ..hashing import digest
 from ..sim.controllers import CONTROLLERS
 from ..tables import NO_ROBOT
 
-#: modules under sim/ that no run executes (the benchmark, the contract check)
-_NOT_SIMULATION = frozenset({"sim/bench.py", "sim/bench_profile.py", "sim/check.py"})
+#: modules under sim/ that are not the simulation: the benchmark and the contract check,
+#: which no run executes, and the controller registry's wiring (the registry, the list of
+#: built-ins, the package's protocols), which names and finds a controller: what a run
+#: executes of a controller is its own module and description, in its own stamp
+#: (:func:`controller_stamp`), so renaming or registering one reruns nothing else
+_NOT_SIMULATION = frozenset({"sim/bench.py", "sim/bench_profile.py", "sim/check.py",
+                             "sim/controllers/registry.py", "sim/controllers/builtin.py",
+                             "sim/controllers/__init__.py"})
 _PACKAGE = Path(__file__).resolve().parents[1]
 
 

@@ -22,98 +22,18 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from ..errors import InputError
+from ..design.plan import Run
 from ..io import write_atomic, write_json
 from ..populations.identity import PopulationSpec
+from ..read.checks import RUNS_IDENTITY, RUNS_RECORD, read_stamps, readable_parquet
 from ..tables import RUN_KEY as TABLE_RUN_KEY
 from ..tables import RUNS
+from .batches import Batch
 from .compact import episode_chunks, write_compacted
-from .plan import Batch, Run
 from .run_inputs import run_inputs
 
 RUN_KEY = list(TABLE_RUN_KEY)
 META_KEY = b"popnavshift"
-
-
-def read_stamps(folder: Path) -> dict:
-    """The stage stamps of ``folder/stages.json`` ({} if absent); InputError if damaged."""
-    path = Path(folder) / "stages.json"
-    if not path.exists():
-        return {}
-    try:
-        stamps = json.loads(path.read_text("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError):
-        stamps = None
-    if not isinstance(stamps, dict) or not all(_stamp_ok(k, v) for k, v in stamps.items()):
-        raise InputError(
-            f"{path} is damaged (not a JSON object of stage stamps)",
-            hint="delete it: every stage is then checked and redone as needed",
-        )
-    return stamps
-
-
-def _stamp_ok(key: str, value: object) -> bool:
-    """A stage's stamp is a string; the run record (:attr:`RunStore.RECORD`) says the
-    compacted tables are whole (``{"run_inputs": 1}``), or, in a folder compacted before
-    runs carried their own digests, holds the inputs stamp and each controller's code
-    stamp (:meth:`RunStore.legacy_inputs`)."""
-    if key != RunStore.RECORD:
-        return isinstance(value, str)
-    if isinstance(value, dict) and value.get("run_inputs") == RunStore.IDENTITY:
-        return True
-    return (isinstance(value, dict) and isinstance(value.get("inputs"), str)
-            and isinstance(value.get("code", {}), dict))
-
-
-def read_manifest(folder: Path) -> dict | None:
-    """``folder/manifest.json`` (None when absent); InputError saying how to recover
-    when it is damaged."""
-    path = Path(folder) / "manifest.json"
-    if not path.exists():
-        return None
-    try:
-        manifest = json.loads(path.read_text("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError):
-        manifest = None
-    if not isinstance(manifest, dict):
-        raise InputError(f"{path} is damaged (not a JSON object)",
-                         hint="run the study again on this folder: `popnavshift run "
-                              "STUDY --out FOLDER` rewrites it without simulating again")
-    return manifest
-
-
-def readable_parquet(path: Path) -> bool:
-    """Whether ``path`` is a Parquet file with an intact footer (a truncated or
-    overwritten file has none). Pages are not decoded: the tables can be large."""
-    try:
-        pq.read_metadata(path)
-        return True
-    except Exception:
-        return False
-
-
-def check_study_folder(folder: Path) -> None:
-    """InputError naming the first damaged table or JSON file of a study folder (the
-    report reads them all); absent files are left for the reader to report."""
-    folder = Path(folder)
-    for name in ("runs", "pedestrians", "populations", "episodes"):
-        path = folder / f"{name}.parquet"
-        if path.exists() and not readable_parquet(path):
-            raise InputError(
-                f"{path} is damaged (not a readable Parquet file)",
-                hint="`popnavshift run` on this folder rebuilds the run tables from their "
-                "shards" if name in ("runs", "pedestrians") else "run its stage again",
-            )
-    read_manifest(folder)
-    for name in ("personas", "responses"):
-        path = folder / f"{name}.json"
-        try:
-            if path.exists():
-                json.loads(path.read_text("utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError):
-            raise InputError(f"{path} is damaged (not valid JSON)",
-                             hint="run the study again to rewrite it") from None
-    read_stamps(folder)
 
 
 class RunStore:
@@ -170,9 +90,9 @@ class RunStore:
 
     # ---- runs carried over from the compacted tables ----
     #: stages.json entry: the compacted tables are whole (written last by a compaction)
-    RECORD = "runs"
+    RECORD = RUNS_RECORD
     #: its value's version: runs carry the digest of their own inputs (``run_inputs``)
-    IDENTITY = 1
+    IDENTITY = RUNS_IDENTITY
 
     def carried(self, planned: Mapping[tuple, str],
                 stored: Mapping[tuple, str] | None = None) -> set[tuple]:

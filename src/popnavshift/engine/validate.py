@@ -19,14 +19,16 @@ import math
 from collections.abc import Iterable, Sequence
 from typing import Any
 
+from ..design.part import EpisodeSelection
+from ..design.plan import select_episodes
+from ..design.specs import RespondentSpec
+from ..design.study import Study
 from ..errors import ConfigError, UnknownNameError
 from ..populations.perturb import STRUCTURE, ProfileSet
 from ..profiles.mappings import MAPPINGS
 from ..responses.respondent import RESPONDENTS
 from ..sim.backends import BACKENDS
 from ..sim.controllers import CONTROLLERS
-from .plan import select_episodes
-from .study import EpisodeSelection, RespondentSpec, Study
 
 #: selection field → (episode attribute, the word used in messages)
 GRID_FIELDS = {

@@ -36,7 +36,7 @@ from ..populations.perturb import ProfileSet
 from ..sim.run import ControllerError, SimResult, failed_result, pedestrian_table, simulate
 from ..sim.slots import SlotProfiles, profiles_of_members
 from ..tables import NO_ROBOT
-from .plan import Batch
+from .batches import Batch
 from .rebuild import member_arrays
 
 

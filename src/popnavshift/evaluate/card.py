@@ -1,26 +1,25 @@
 """The population-robustness card's tables (pure).
 
-Pipeline: ``card_tables(runs, pedestrians, controller, baselines, rng=...)`` →
+Pipeline: ``card_tables(runs, pedestrians, controller, baselines, robustness, rng=...)`` →
 :class:`Card` (pure, from :mod:`popnavshift.analysis`) → ``card_figure`` and
 ``render_html`` of :mod:`.card_page` (given the replay SVG of the worst run, drawn
 elsewhere).
 
-What the card says, for the evaluated part of a study (every population × cell):
+What the card says:
 
-* outcomes per controller (Table II's columns, controller errors included);
-* robot time, mean and worst-decile pedestrian delay per population [s], each
-  the mean over cells of the cell metric, with the gap to the best baseline;
-* how often the controller's ranking against each baseline reverses between two
-  populations (pooled over every cell and population pair, cluster-bootstrap CI
-  over cells, tie tolerances of the paper);
-* the populations where it does worst: lowest success share, then largest mean-delay
-  gap to the best baseline;
-* the worst run: a collision, else a timeout, else the largest worst-decile delay;
-* first of all, the verdict (:mod:`.verdict`): per-population ranks with rank
-  intervals, wins and losses per cell, significant reversals (paired episode
-  bootstrap), and a safety banner naming each failure that makes it less safe than the
-  baselines (:mod:`.safety`; an absolute threshold is an option). A controller that
-  fails every run never reads as robust.
+* first, its two verdicts (:mod:`.verdict`): **robustness**, decided against the
+  controller's own null runs on every evaluation part (:mod:`.robustness`, computed by
+  the caller: the observed reversal rates of its orderings against the baselines beside
+  their null, with the deciding intervals and the card's own calibration), and
+  **safety**, under one rule for every controller (:mod:`.safety`);
+* on the main part (every population × cell): outcomes per controller (Table II's
+  columns, pedestrian collisions with the robot moving apart from pedestrians walking into
+  the standing robot, controller errors included, and the robot's minimum clearance, path
+  length and stop time); robot time, mean and worst-decile pedestrian delay per population
+  [s], each the mean over cells of the cell metric, with the gap to the best baseline;
+  the populations where it does worst; ranks with rank intervals, wins and losses per
+  cell and the crossover tests (:func:`.verdict.card_evidence`);
+* the worst run: a collision, else a timeout, else the largest worst-decile delay.
 """
 
 from __future__ import annotations
@@ -35,31 +34,33 @@ from ..analysis import (
     METRICS,
     RANKED_METRICS,
     cell_metrics,
-    comparisons,
     controller_outcomes,
     paired_delays,
-    population_pairs,
-    rate_intervals,
     worst_decile,
 )
 from ..analysis.delay import UNIT
 from ..tables import RUN_KEY
-from .safety import failure_rates, paired_differences, safety_findings
-from .verdict import (
-    Evidence,
-    Verdict,
-    card_evidence,
-    verdict,
+from .robustness import Robustness
+from .safety import (
+    SAFETY_THRESHOLD,
+    failure,
+    failure_rates,
+    paired_differences,
+    safety_verdict,
 )
+from .verdict import Evidence, Verdict, card_evidence, card_verdict
 
 FAILURE_ORDER = ("pedestrian_collision", "world_collision", "timeout")  # worst first
 METRIC_LABELS = {m.name: m.axis_label for m in RANKED_METRICS}
 #: the outcomes table's columns as the card and its Markdown / LaTeX export name them
 OUTCOME_LABELS = {"controller": "controller", "success_pct": "success %",
-                  "pedestrian_collision_pct": "ped. coll. %",
+                  "pedestrian_collision_pct": "ped. coll. % (robot moving)",
+                  "standing_contact_pct": "standing contacts %",
                   "world_collision_pct": "world coll. %", "timeout_pct": "timeout %",
                   "controller_error_pct": "ctrl error %",
-                  **{m: METRIC_LABELS[m] for m in METRICS}, "n_runs": "runs"}
+                  **{m: METRIC_LABELS[m] for m in METRICS},
+                  "min_clearance": "min. clearance [m]", "path_length": "path [m]",
+                  "stop_time": "stop time [s]", "n_runs": "runs"}
 N_WORST = 2  # populations named as "where it does worst"
 
 
@@ -67,14 +68,15 @@ N_WORST = 2  # populations named as "where it does worst"
 class Card:
     """The card's tables. ``per_population``: one row per (population, controller);
     ``gaps``: per population, controller minus best baseline per metric [s], worst
-    first; ``reversals``: per (baseline, metric); ``worst_run``: run key and why."""
+    first; ``robustness``: the verdict's tables (:class:`.robustness.Robustness`);
+    ``worst_run``: run key and why."""
 
     controller: str
     baselines: tuple[str, ...]
     outcomes: pd.DataFrame
     per_population: pd.DataFrame
     gaps: pd.DataFrame
-    reversals: pd.DataFrame
+    robustness: Robustness
     errors: pd.DataFrame
     worst_run: dict[str, Any] | None
     evidence: Evidence
@@ -84,39 +86,58 @@ class Card:
 
     def tables(self) -> dict[str, pd.DataFrame]:
         """Every table the card shows, by the name of its CSV file (``<name>.csv``)."""
+        rob = self.robustness
         return {"outcomes": self.outcomes.reset_index(), "per_population": self.per_population,
-                "gaps": self.gaps, "reversals": self.reversals,
-                "significant_reversals": self.evidence.reversals, "ranks": self.evidence.ranks,
-                "wins": self.evidence.wins, "safety_rates": self.safety_rates,
+                "gaps": self.gaps, "robustness": rob.headline,
+                "robustness_by_baseline": rob.by_baseline,
+                "robustness_null_rates": rob.null_rates,
+                "robustness_calibration": rob.calibration, "ranks": self.evidence.ranks,
+                "wins": self.evidence.wins, "crossovers": self.evidence.crossovers,
+                "safety_rates": self.safety_rates,
                 "safety_differences": self.safety_differences, "errors": self.errors}
 
 
 def card_tables(runs: pd.DataFrame, pedestrians: pd.DataFrame, controller: str,
-                baselines: tuple[str, ...], *, rng: np.random.Generator,
-                n_boot: int = 1000, seed_sets: int = 1,
-                safety_threshold: float | None = None) -> Card:
-    """Every table of the card from the evaluated part's runs and pedestrians.
+                baselines: tuple[str, ...], robustness: Robustness, *,
+                rng: np.random.Generator, n_boot: int = 1000,
+                safety_threshold: float = SAFETY_THRESHOLD, decide: str = "") -> Card:
+    """Every table of the card from the main part's runs and pedestrians and the
+    robustness verdict's tables (computed on every evaluation part by the caller).
 
-    ``rng`` draws the cell bootstrap of the raw rates, then the episode bootstrap of
-    the verdict; ``seed_sets`` is the number of episode seed sets in ``runs`` (for
-    the advice of an inconclusive verdict).
+    ``rng`` draws the episode bootstraps of the evidence and of the safety differences;
+    ``decide``: what would decide an undecided robustness verdict.
     """
     paired = paired_delays(pedestrians)
     cells = cell_metrics(runs, paired)
     order = [controller, *baselines]
-    outcomes = controller_outcomes(runs, cells).reindex(order)
+    outcomes = card_outcomes(runs, cells, order)
     errors = runs.loc[runs["outcome"] == "controller_error",
                       ["episode", "population", "controller", "error"]].reset_index(drop=True)
-    reversals = reversals_against(cells, controller, baselines, rng=rng, n_boot=n_boot)
-    ev = card_evidence(runs, pedestrians, controller, baselines, rng=rng, n_boot=n_boot,
-                       seed_sets=seed_sets)
+    ev = card_evidence(runs, pedestrians, controller, baselines, rng=rng, n_boot=n_boot)
     rates = failure_rates(runs, order)
     diffs = paired_differences(runs, controller, list(baselines), rng=rng, n_boot=n_boot)
-    unsafe = safety_findings(rates, diffs, controller, list(baselines), safety_threshold)
+    safety = safety_verdict(rates, controller, safety_threshold)
     return Card(controller, baselines, outcomes, per_population(cells),
-                population_gaps(cells, controller, baselines), reversals, errors,
+                population_gaps(cells, controller, baselines), robustness, errors,
                 worst_run(runs, paired, controller), ev,
-                verdict(runs, controller, ev, seed_sets=seed_sets, safety=unsafe), rates, diffs)
+                card_verdict(runs, controller, robustness, safety, decide), rates, diffs)
+
+
+def card_outcomes(runs: pd.DataFrame, cells: pd.DataFrame, order: list[str]) -> pd.DataFrame:
+    """Table II per controller (``controller_outcomes``), with pedestrian collisions split
+    by who moved (``pedestrian_collision_pct``: the robot moving; ``standing_contact_pct``:
+    a pedestrian walking into the standing robot, :func:`.safety.failure`) and the robot's
+    mean path length [m] and stop time [s] beside its mean minimum clearance [m]."""
+    out = controller_outcomes(runs, cells).reindex(order)
+    robot = runs[runs["controller"].isin(order)]
+    kind = failure(robot)
+    share = (pd.crosstab(robot["controller"], kind, normalize="index") * 100.0).reindex(order)
+    for k in ("pedestrian_collision", "standing_contact"):
+        out[f"{k}_pct"] = share.get(k, 0.0)
+    g = robot.groupby("controller")
+    out["path_length"] = g["robot_path_length"].mean()
+    out["stop_time"] = g["robot_stop_time"].mean()
+    return out
 
 
 def per_population(cells: pd.DataFrame) -> pd.DataFrame:
@@ -145,29 +166,6 @@ def population_gaps(cells: pd.DataFrame, controller: str,
     gaps = pd.DataFrame({"success_pct": 100.0 * own.mean(), **out}).rename_axis("population")
     return gaps.reset_index().sort_values(["success_pct", "mean_delay"], ascending=[True, False],
                                           na_position="last", ignore_index=True)
-
-
-def reversals_against(cells: pd.DataFrame, controller: str, baselines: tuple[str, ...], *,
-                      rng: np.random.Generator, n_boot: int = 1000) -> pd.DataFrame:
-    """Reversal rate of (controller vs each baseline) over every population pair, per
-    metric, with a cluster-bootstrap interval over cells. Columns ``baseline, metric,
-    reversals, comparisons, rate, ci_low, ci_high`` (rates in [0, 1])."""
-    pairs = population_pairs(sorted(cells["population"].unique()))
-    frames = []
-    for b in baselines:
-        comps = comparisons(cells, pairs, controllers=[controller, b])
-        frames.append(rate_intervals(comps, ("metric",), rng=rng, n_boot=n_boot)
-                      .assign(baseline=b))
-    out = pd.concat(frames, ignore_index=True)
-    out["metric"] = pd.Categorical(out["metric"], METRICS, ordered=True)
-    out = out.sort_values(["baseline", "metric"], key=_baseline_order(baselines))
-    return out[["baseline", "metric", "reversals", "comparisons", "rate", "ci_low",
-                "ci_high"]].astype({"metric": str}).reset_index(drop=True)
-
-
-def _baseline_order(baselines: tuple[str, ...]):
-    rank = {b: i for i, b in enumerate(baselines)}
-    return lambda s: s.map(rank) if s.name == "baseline" else s
 
 
 def worst_run(runs: pd.DataFrame, paired: pd.DataFrame, controller: str) -> dict | None:

@@ -2,11 +2,14 @@
 
 Pipeline: ``compare(controllers, study, base_folder)`` evaluates each controller
 (:func:`.run.evaluate`: cached, so a controller already evaluated simulates nothing) and
-writes its card unless a card of the same study, baselines and runs is there (its
-``card.json`` is read instead); then ``compare_table`` (pure) puts every controller in one
+writes its card unless a current one is there: same identity (controller, baselines,
+study configuration, bootstrap resamples and seed, safety threshold, runs, code) and
+every file as written (:mod:`.card_files`); so cards made under other rules are never set
+side by side, they are made again. Then ``compare_table`` (pure) puts every controller in one
 table, on the union of their runs — the same episodes and populations for all:
 
-* the card's verdict label and safety findings;
+* the card's two verdicts: robustness, with the rate that carries it (its excess over the
+  null and interval), and safety, with its findings;
 * outcome shares [%] with exact (Clopper–Pearson) 95 % intervals;
 * robot time, mean delay, worst decile and CVaR-90 [s], each the mean over (cell,
   population) rows of the cell statistic (as on the card);
@@ -16,9 +19,9 @@ table, on the union of their runs — the same episodes and populations for all:
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -29,11 +32,15 @@ from ..analysis import cell_metrics, paired_delays
 from ..analysis.ranked import RANKED_NAMES
 from ..analysis.summary import OUTCOMES
 from ..analysis.verdicts import clopper_pearson
-from ..engine.study import Study
+from ..controller_ids import controller_id, parse_controller_id
+from ..design.study import Study
+from ..errors import InputError
+from ..read.access import card_intact
 from ..sim.controllers import CONTROLLERS
-from ..sim.controllers.registry import controller_id, parse_controller_id
 from ..tables import NO_ROBOT, RUN_KEY
-from .run import BASELINES, EVALUATE_DIR, Evaluation, evaluate, make_card, slug
+from .card_files import check_card_settings, current_card
+from .run import BASELINES, evaluate, make_card
+from .safety import SAFETY_THRESHOLD, failure
 
 COMPARE_METRICS: tuple[str, ...] = RANKED_NAMES  # every ranked metric, as the card
 LEVEL = 0.95
@@ -43,8 +50,8 @@ Log = Callable[[str], None]
 @dataclass
 class Comparison:
     """The compared controllers (in the order given), their table (:func:`compare_table`),
-    the per-population means behind the figure, each controller's card page and the
-    ``verdict`` object of its ``card.json``."""
+    the per-population means behind the figure, each controller's card page, the
+    ``verdict`` object of its ``card.json`` and the settings every card was made under."""
 
     controllers: tuple[str, ...]
     table: pd.DataFrame
@@ -53,16 +60,36 @@ class Comparison:
     verdicts: dict[str, dict[str, Any]]
     study: Study
     base_folder: Path
+    #: the rules every card was made under (one set for all: n_boot, seed,
+    #: safety_threshold, baselines)
+    settings: dict[str, Any] = field(default_factory=dict)
+    #: when the comparison was made (ISO 8601, UTC, seconds)
+    made: str = ""
+    #: what it is: "compare" (controllers named) or "leaderboard" (every controller)
+    kind: str = "compare"
+
+
+#: the outcome shares compared: a run's outcome, a pedestrian collision split by who moved
+#: (:func:`.safety.failure`: ``standing_contact`` is a pedestrian walking into the standing
+#: robot, ``pedestrian_collision`` the robot moving)
+SHARES: tuple[str, ...] = (*OUTCOMES[:2], "standing_contact", *OUTCOMES[2:])
+#: the robot's run metrics compared, mean over its runs [m, m, s]
+RUN_MEANS = {"min_clearance": "robot_min_clearance", "path_length": "robot_path_length",
+             "stop_time": "robot_stop_time"}
 
 
 def outcome_shares(runs: pd.DataFrame, controllers: Sequence[str]) -> pd.DataFrame:
-    """Per controller (index): ``runs`` and, per outcome, ``<outcome>_pct`` [%] with its
-    Clopper–Pearson ``<outcome>_low`` / ``<outcome>_high`` [%] over the controller's runs."""
+    """Per controller (index): ``runs``, per outcome of :data:`SHARES` ``<outcome>_pct`` [%]
+    with its Clopper–Pearson ``<outcome>_low`` / ``<outcome>_high`` [%] over the
+    controller's runs, and the means of :data:`RUN_MEANS`."""
     rows = []
+    kinds = failure(runs)
     for ctrl in controllers:
-        outcome = runs.loc[runs["controller"] == ctrl, "outcome"]
+        mine = runs["controller"] == ctrl
+        outcome = kinds[mine]
         row: dict[str, Any] = {"controller": ctrl, "runs": len(outcome)}
-        for o in OUTCOMES:
+        row.update({k: float(runs.loc[mine, c].mean()) for k, c in RUN_MEANS.items()})
+        for o in SHARES:
             k = int((outcome == o).sum())
             low, high = clopper_pearson(k, len(outcome), LEVEL)
             row.update({f"{o}_pct": 100 * k / len(outcome) if len(outcome) else np.nan,
@@ -103,47 +130,63 @@ def compare_table(runs: pd.DataFrame, pedestrians: pd.DataFrame, controllers: Se
     per_pop = population_means(cells, controllers)
     means = cells[cells["controller"].isin(controllers)].groupby("controller")[
         list(COMPARE_METRICS)].mean()
-    head = pd.DataFrame({
-        "verdict": [verdicts[c]["label"] for c in controllers],
-        "safety_findings": [len(verdicts[c]["safety"]) for c in controllers],
-        "safety": [" / ".join(verdicts[c]["safety"]) for c in controllers],
-    }, index=pd.Index(list(controllers), name="controller"))
+    head = verdict_columns(verdicts, controllers)
     table = pd.concat([head, outcome_shares(runs, controllers), means.reindex(head.index),
                        ranks(cells, per_pop, controllers)], axis=1)
     return table.reset_index(), per_pop
 
 
+def verdict_columns(verdicts: dict[str, dict[str, Any]],
+                    controllers: Sequence[str]) -> pd.DataFrame:
+    """Per controller (index): its robustness verdict with the rate that carries it (design,
+    metric, excess over the null and its simultaneous interval, in percentage points) and
+    its safety verdict with the number of unsafe findings and the findings themselves."""
+    rows = []
+    for c in controllers:
+        rob, safe = verdicts[c]["robustness"], verdicts[c]["safety"]
+        row = rob.get("row") or {}
+        rows.append({"controller": c, "robustness": rob["label"],
+                     "robustness_design": row.get("design", ""),
+                     "robustness_metric": row.get("metric", ""),
+                     "excess_pp": 100 * row["excess"] if row else np.nan,
+                     "excess_low_pp": 100 * row["ci_low"] if row else np.nan,
+                     "excess_high_pp": 100 * row["ci_high"] if row else np.nan,
+                     "safety": safe["label"], "safety_findings": len(safe["findings"]),
+                     "safety_text": " / ".join(safe["findings"])})
+    return pd.DataFrame(rows).set_index("controller")
+
+
 # ------------------------------------------------------------------ files and runs
-def card_is_current(card_json: Path, ev: Evaluation) -> bool:
-    """Whether ``card_json`` is the card of ``ev``: same study configuration and
-    baselines, and no run of ``ev`` was simulated since (nothing executed)."""
-    if ev.executed or not card_json.exists():
-        return False
-    card = json.loads(card_json.read_text("utf-8"))
-    return (card.get("config_hash") == ev.study.config_hash()
-            and card.get("baselines") == list(ev.baselines))
-
-
 def compare(controllers: Sequence[str], study: Study, base_folder: Path, *, workers: int = 2,
-            n_boot: int = 1000, seed: int = 0, show_progress: bool = True,
-            log: Log | None = None) -> Comparison:
-    """Evaluate (cached) and card every controller that has no current card, then compare
-    them all on the union of their runs (module doc)."""
+            n_boot: int = 1000, seed: int = 0, safety_threshold: float | None = None,
+            baselines: Sequence[str] = BASELINES, show_progress: bool = True,
+            log: Log | None = None, kind: str = "compare") -> Comparison:
+    """Evaluate (cached) every controller and make its card unless the one in
+    ``STUDY/evaluate`` is current under these settings (:func:`.card_files.card_is_current`:
+    same identity, every file intact; else it is made again and ``log`` says why), then
+    compare them all on the union of their runs (module doc)."""
     say = log or (lambda _msg: None)
     ids = tuple(dict.fromkeys(controller_id(*parse_controller_id(c)) for c in controllers))
-    for c in ids:  # every name must resolve before anything runs
+    threshold = SAFETY_THRESHOLD if safety_threshold is None else safety_threshold
+    check_card_settings(n_boot, seed, threshold)
+    for c in (*ids, *baselines):  # every name must resolve before anything runs
         CONTROLLERS.make(c)
     evaluations, verdicts, cards = [], {}, {}
     for c in ids:
-        out = Path(base_folder) / EVALUATE_DIR / slug(c)
-        ev = evaluate(c, study, base_folder, out, baselines=BASELINES, workers=workers,
+        ev = evaluate(c, study, base_folder, baselines=baselines, workers=workers,
                       show_progress=show_progress, log=say)
-        if card_is_current(out / "card.json", ev):
-            say(f"{c}: card reused ({out / 'card.html'})")
+        out, why = current_card(c, study, base_folder, ev.out, baselines=baselines,
+                                n_boot=n_boot, seed=seed, safety_threshold=threshold)
+        if why:
+            make_card(ev, n_boot=n_boot, seed=seed, safety_threshold=threshold)
+            made_again = "" if why == "no card yet" else f" (made again: {why})"
+            say(f"{c}: card → {out / 'card.html'}{made_again}")
         else:
-            make_card(ev, n_boot=n_boot, seed=seed)
-            say(f"{c}: card → {out / 'card.html'}")
-        verdicts[c] = json.loads((out / "card.json").read_text("utf-8"))["verdict"]
+            say(f"{c}: card reused ({out / 'card.html'})")
+        doc, why = card_intact(out)
+        if why:  # written a moment ago: only a concurrent writer gets here
+            raise InputError(f"card {out}: {why}", hint="make it again")
+        verdicts[c] = doc["verdict"]
         cards[c] = out / "card.html"
         evaluations.append(ev)
     runs = pd.concat([e.runs for e in evaluations]).drop_duplicates(list(RUN_KEY))
@@ -151,4 +194,7 @@ def compare(controllers: Sequence[str], study: Study, base_folder: Path, *, work
     runs = runs[runs["controller"].isin([*ids, NO_ROBOT])]
     peds = peds[peds["controller"].isin([*ids, NO_ROBOT])]
     table, per_pop = compare_table(runs, peds, ids, verdicts)
-    return Comparison(ids, table, per_pop, cards, verdicts, study, Path(base_folder))
+    settings = {"n_boot": n_boot, "seed": seed, "safety_threshold": threshold,
+                "baselines": list(baselines)}
+    return Comparison(ids, table, per_pop, cards, verdicts, study, Path(base_folder), settings,
+                      datetime.now(UTC).isoformat(timespec="seconds"), kind)

@@ -2,8 +2,13 @@
 CSV, and its main columns as Markdown and LaTeX.
 
 ``write_comparison(comparison, page)`` writes ``page`` (``.html``) and, beside it, the
-same stem with ``.csv`` (every column), ``.md`` and ``.tex`` (:func:`display_table`) and
-``.png`` (the figure, also embedded in the page).
+same stem with ``.csv`` (every column), ``.md`` and ``.tex`` (:func:`display_table`),
+``.png`` (the figure, also embedded in the page) and, last, ``.json``: the manifest of
+the set (the controllers, the settings their cards were made under, each file's sha256;
+:class:`popnavshift.outputs.FileSet`), so a comparison interrupted while it is written
+never leaves the tables of one set of controllers beside the page of another
+unannounced. :func:`check_page` refuses, before any work, a page whose files would
+replace files that no comparison wrote.
 """
 
 from __future__ import annotations
@@ -17,17 +22,22 @@ import numpy as np
 import pandas as pd
 from jinja2 import Environment, select_autoescape
 
-from ..analysis.ranked import names
-from ..io import write_text
+from ..errors import ConfigError, InputError
+from ..io import read_json_object
+from ..outputs import FileSet, check_writable
+from ..version import __version__
+from ..viz.style import controller_styles
 from .card import METRIC_LABELS
-from .card_page import population_panel, save_png
+from .card_page import png_bytes, population_panel
 from .compare import COMPARE_METRICS, Comparison
-from .export import write_table
+from .export import latex_table, table_text
 
-RANKED = names(summary=True)  # the ranks the main table shows
-_SHARES = {"success": "success %", "pedestrian_collision": "ped. coll. %",
-           "world_collision": "wall/obstacle %", "timeout": "timeout %",
-           "controller_error": "ctrl error %"}
+RANKED = COMPARE_METRICS  # the ranks the tables show: every ranked metric, as the CSV
+_SHARES = {"success": "success %", "pedestrian_collision": "ped. coll. % (robot moving)",
+           "standing_contact": "standing contacts %", "world_collision": "wall/obstacle %",
+           "timeout": "timeout %", "controller_error": "ctrl error %"}
+_MEANS = {"min_clearance": "min. clearance [m]", "path_length": "path [m]",
+          "stop_time": "stop time [s]"}
 
 
 def _share(row: pd.Series, outcome: str) -> str:
@@ -46,19 +56,67 @@ def _rank(row: pd.Series, metric: str) -> str:
     return f"{r}" if best == worst == r else f"{r} ({best}–{worst})"
 
 
-def display_table(table: pd.DataFrame) -> pd.DataFrame:
-    """The comparison's main columns as text, one row per controller: verdict, safety
-    findings, outcome shares [%] with 95 % intervals, the metrics [s] and ranks."""
+def _excess(row: pd.Series, *, where: bool = True) -> str:
+    """``+3.2 [-1.0, +7.4] pp (all pairs, mean delay)``: the rate that carries the
+    robustness verdict, its excess over the null with the simultaneous interval (without
+    ``where``, the numbers only: ``+3.2 [-1.0, +7.4]``)."""
+    if not np.isfinite(row["excess_pp"]):
+        return "–"
+    if not where:
+        return (f"{row['excess_pp']:+.1f} [{row['excess_low_pp']:+.1f}, "
+                f"{row['excess_high_pp']:+.1f}]")
+    metric = METRIC_LABELS.get(row["robustness_metric"], row["robustness_metric"])
+    place = (f" ({str(row['robustness_design']).replace('_', ' ')}, "
+             f"{str(metric).split(' [')[0]})")
+    return (f"{row['excess_pp']:+.1f} [{row['excess_low_pp']:+.1f}, "
+            f"{row['excess_high_pp']:+.1f}] pp{place}")
+
+
+def display_table(table: pd.DataFrame, *, short: bool = False) -> pd.DataFrame:
+    """The comparison's main columns as text, one row per controller: the robustness verdict
+    with the excess that carries it, the safety verdict, outcome shares [%] with 95 %
+    intervals, the metrics [s], the robot's clearance, path and stop time, and the ranks
+    with their best–worst range over populations. ``short``: the columns a paper's page
+    holds (the LaTeX table, :data:`SHORT_DROPS`): no intervals on the shares; the burden
+    metrics, the clearance and the burden ranks only."""
     rows = []
     for _, row in table.iterrows():
-        out: dict[str, Any] = {"controller": row["controller"], "verdict": row["verdict"],
-                               "safety findings": int(row["safety_findings"])}
-        out.update({label: _share(row, o) for o, label in _SHARES.items()})
+        out: dict[str, Any] = {"controller": row["controller"],
+                               "robustness": row["robustness"],
+                               "excess over null" + (" [pp]" if short else ""):
+                                   _excess(row, where=not short), "safety": row["safety"]}
+        for o, label in _SHARES.items():
+            out[label] = (f"{row[f'{o}_pct']:.1f}" if short and np.isfinite(row[f"{o}_pct"])
+                          else _share(row, o))
         out.update({METRIC_LABELS[m]: f"{row[m]:.2f}" if np.isfinite(row[m]) else "–"
                     for m in COMPARE_METRICS})
+        out.update({label: f"{row[m]:.2f}" if np.isfinite(row[m]) else "–"
+                    for m, label in _MEANS.items()})
         out.update({f"rank {METRIC_LABELS[m].split(' [')[0]}": _rank(row, m) for m in RANKED})
-        rows.append(out)
+        rows.append({k: v for k, v in out.items() if not (short and k in SHORT_DROPS)})
     return pd.DataFrame(rows)
+
+
+#: the columns the short (LaTeX) table leaves to the CSV and Markdown: a paper's page holds
+#: about a dozen; the robot time and the timeouts are in Table II of the study's report
+SHORT_DROPS = frozenset({
+    _SHARES["timeout"], _SHARES["controller_error"], _SHARES["standing_contact"],
+    METRIC_LABELS["cvar90"], _MEANS["path_length"], _MEANS["stop_time"],
+    "rank " + METRIC_LABELS["robot_time"].split(" [")[0],
+    "rank " + METRIC_LABELS["cvar90"].split(" [")[0]})
+
+
+def caption(comparison: Comparison) -> str:
+    """The table's caption, plain text: what the rows are, the study, the rules, provenance."""
+    st = comparison.settings
+    return (f"Controllers under behavioural population shift (PopNavShift {__version__}, "
+            f"study {comparison.study.name}, configuration {comparison.study.config_hash()}, "
+            f"{comparison.made[:10]}). Robustness: reversal rates of each controller's "
+            f"orderings against {', '.join(st.get('baselines', []))} beyond its own null "
+            "runs (excess in pp, simultaneous 95% interval); safety: a counted failure above "
+            f"{100 * st.get('safety_threshold', 0):g}% of its runs with 95% confidence; shares "
+            "in % of runs, metrics in s or m; rank among the compared (best-worst over "
+            "populations).")
 
 
 def compare_figure(comparison: Comparison):
@@ -67,6 +125,7 @@ def compare_figure(comparison: Comparison):
     import matplotlib  # lazy: slow to import
 
     matplotlib.use("Agg")
+    matplotlib.rcParams["text.parse_math"] = False  # a label is data: "$" is no math
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(2, 2, figsize=(12, 8), constrained_layout=True)
@@ -84,50 +143,123 @@ def render_html(comparison: Comparison, png: bytes, page: Path) -> str:
     env = Environment(autoescape=select_autoescape(default=True, default_for_string=True))
     shown = display_table(comparison.table)
     links = {c: os.path.relpath(p, Path(page).parent) for c, p in comparison.cards.items()}
+    styles = controller_styles(comparison.controllers)
+    looks = {c: {"colour": st.colour, "symbol": MARKER_SYMBOLS.get(st.marker, st.marker)}
+             for c, st in styles.items()}
     return env.from_string(_PAGE).render(
         c=comparison, columns=list(shown.columns), rows=shown.to_dict("records"),
-        verdicts=comparison.verdicts,
-        links=links, png=base64.b64encode(png).decode("ascii"), stem=Path(page).stem)
+        verdicts=comparison.verdicts, looks=looks, version=__version__,
+        links=links, png=base64.b64encode(png).decode("ascii"), stem=Path(page).stem,
+        heading=HEADINGS.get(comparison.kind, HEADINGS["compare"]))
+
+
+#: each matplotlib marker as the character the page draws it with beside a row's name
+MARKER_SYMBOLS = {"o": "●", "s": "■", "^": "▲", "D": "◆", "v": "▼", "P": "✚", "X": "✖",
+                  "h": "⬢", "<": "◀", ">": "▶", "p": "⬟", "*": "★", "d": "♦", "8": "⯃",
+                  "H": "⬣"}
+
+
+#: the page's heading by the comparison's kind
+HEADINGS = {"compare": "Controllers compared",
+            "leaderboard": "Leaderboard: every controller, two verdicts each"}
+
+#: the files of a comparison, by the suffix of the page's stem; the manifest is ``.json``
+SUFFIXES: tuple[str, ...] = (".html", ".csv", ".md", ".tex", ".png")
+KIND = "popnavshift compare"
+
+
+def check_page(page: Path, *, ours: bool = False) -> None:
+    """ConfigError unless ``page`` (``--out``) can be written: an ``.html`` name in a
+    folder we may write (or create), not a folder, and none of its files
+    (:data:`SUFFIXES` and the ``.json`` manifest) an existing file that an earlier
+    comparison, by its manifest, did not write (unless the folder is ``ours``: the study's
+    own ``compare/``, where a comparison of an older version left no manifest)."""
+    page = Path(page)
+    hint = "choose another --out (default: STUDY_DIR/compare/compare.html)"
+    if page.suffix != ".html":
+        raise ConfigError(f"--out must name an .html page, got {str(page)!r}",
+                          hint=f"e.g. --out {page.with_suffix('.html')}")
+    manifest = page.with_suffix(".json")
+    written: set[str] = set()
+    try:
+        doc = read_json_object(manifest) if manifest.is_file() else {}
+    except InputError:
+        doc = {}
+    if doc.get("kind") == KIND and isinstance(doc.get("files"), dict):
+        written = {*doc["files"], manifest.name}
+    for path in (page.with_suffix(s) for s in (*SUFFIXES, ".json")):
+        if path.is_dir():
+            raise ConfigError(f"--out {page}: {path} is a folder", hint=hint)
+        if path.exists() and not ours and path.name not in written:
+            raise ConfigError(f"--out {page} would replace {path}, which no comparison wrote",
+                              hint=hint + ", or move that file")
+    check_writable(page.parent, f"--out {page}")
 
 
 def write_comparison(comparison: Comparison, page: Path) -> dict[str, Path]:
-    """Write the page and its tables and figure (module doc); format → path."""
+    """Write the page and its tables and figure as one set (module doc; the caller has
+    checked ``page``: :func:`check_page`); format → path."""
     page = Path(page)
-    page.parent.mkdir(parents=True, exist_ok=True)
-    paths = {"csv": write_table(comparison.table, page.with_suffix(".csv"), "csv")}
     shown = display_table(comparison.table)
-    for fmt in ("md", "tex"):
-        paths[fmt] = write_table(shown, page.with_suffix(f".{fmt}"), fmt)
-    paths["png"] = save_png(compare_figure(comparison), page.with_suffix(".png"), dpi=100)
-    paths["html"] = write_text(render_html(comparison, paths["png"].read_bytes(), page), page)
+    with FileSet(page.parent, page.with_suffix(".json").name) as files:
+        paths = {"csv": files.add_text(page.with_suffix(".csv").name,
+                                       table_text(comparison.table, "csv")),
+                 "md": files.add_text(page.with_suffix(".md").name, table_text(shown, "md")),
+                 "tex": files.add_text(page.with_suffix(".tex").name, latex_table(
+                     display_table(comparison.table, short=True), caption(comparison),
+                     label=f"tab:{Path(page).stem}"))}
+        png = png_bytes(compare_figure(comparison), dpi=100)
+        paths["png"] = files.add(page.with_suffix(".png").name, lambda tmp: tmp.write_bytes(png))
+        paths["html"] = files.add_text(page.name, render_html(comparison, png, page))
+        files.commit({"kind": KIND, "what": comparison.kind,
+                      "controllers": list(comparison.controllers),
+                      "study": comparison.study.name,
+                      "config_hash": comparison.study.config_hash(),
+                      "popnavshift": __version__, "made": comparison.made,
+                      "settings": comparison.settings, "verdicts": comparison.verdicts})
     return paths
 
 
 _PAGE = """<!doctype html>
-<html lang="en"><head><meta charset="utf-8"><title>Controllers compared:
+<html lang="en"><head><meta charset="utf-8"><title>{{ heading }}:
 {{ c.controllers | join(", ") }}</title>
-<style>body{font-family:sans-serif;margin:1.5em auto;max-width:1250px;font-size:14px}
-table{border-collapse:collapse;margin:.4em 0}td,th{border:1px solid #ccc;padding:2px 7px}
-td{text-align:right;white-space:nowrap}td.l,th{text-align:left}.small{color:#555;font-size:12px}
-.unsafe,.fails-every-run{color:#b00;font-weight:bold}img{max-width:100%}</style></head><body>
-<h1>Controllers compared</h1>
-<p>Study <b>{{ c.study.name }}</b> ({{ c.base_folder }}): {{ c.controllers | length }}
-controllers on the same episodes and populations. Each row's verdict is its robustness
-card's (against the study's built-in baselines); the other columns are computed here on
-the union of their runs.</p>
-<table><tr>{% for col in columns %}<th>{{ col }}</th>{% endfor %}</tr>
-{% for r in rows %}<tr>{% for col in columns %}{% if loop.index <= 2 %}<td class="l{%
-if col == 'verdict' %} {{ r[col] | replace(' ', '-') }}{% endif %}">{% if col == 'controller'
-%}<a href="{{ links[r[col]] }}">{{ r[col] }}</a>{% else %}{{ r[col] }}{% endif %}</td>{%
-else %}<td>{{ r[col] }}</td>{% endif %}{% endfor %}</tr>{% endfor %}</table>
-<p class="small">Shares in % of each controller's runs with exact 95% intervals; metrics
-in s, the mean over (cell, population) of the cell statistic; rank among the compared
-(1 = lowest), in brackets its best–worst rank over the populations. Tables:
-{{ stem }}.csv (every column), {{ stem }}.md, {{ stem }}.tex beside this page.</p>
-<img src="data:image/png;base64,{{ png }}" alt="compared metrics per population" width="1200">
-<h2>Safety findings</h2>
-<ul>{% for ctrl, v in verdicts.items() %}<li><b>{{ ctrl }}</b> ({{ v.label }}): {% if v.safety
-%}<ul>{% for f in v.safety %}<li>{{ f }}</li>{% endfor %}</ul>{% else %}no failure above
-the baselines{% endif %}</li>{% endfor %}</ul>
+<style>body{font-family:sans-serif;margin:1.5em auto;max-width:1200px;padding:0 1em;
+font-size:14px}table{border-collapse:collapse;margin:.4em 0;font-size:12px}
+td,th{border:1px solid #ccc;padding:2px 6px}td{text-align:right;white-space:nowrap}
+td.l,th{text-align:left}.small{color:#555;font-size:12px}.wrap{overflow-x:auto;max-width:100%}
+.population-sensitive,.unsafe,.fails-every-run{color:#b00;font-weight:bold}
+.robust,.safe{color:#2a7a2a;font-weight:bold}.undecided{color:#a60}
+.mark{font-size:15px}img{max-width:100%}</style></head><body>
+<h1>{{ heading }}</h1>
+<p>Study <b>{{ c.study.name }}</b> (configuration {{ c.study.config_hash() }}, folder
+{{ c.base_folder }}): {{ c.controllers | length }} controllers on the same episodes and
+populations. PopNavShift {{ version }}, made {{ c.made }}. Every card was made under the
+same rules: against {{ c.settings.get("baselines", []) | join(", ") }},
+{{ c.settings.get("n_boot", "–") }} bootstrap resamples, seed {{ c.settings.get("seed", "–") }},
+safety threshold {{ c.settings.get("safety_threshold", "–") }} of the runs. The
+<b>robustness</b> verdict of each row is decided against that controller's own null runs
+(the rate shown is the one that carries it: its excess over the null in percentage points,
+with its simultaneous 95% interval); <b>safety</b> follows one rule for every row, so both
+columns can be ranked.</p>
+<div class="wrap"><table><tr>{% for col in columns %}<th>{{ col }}</th>{% endfor %}</tr>
+{% for r in rows %}<tr>{% for col in columns %}{% if col == 'controller' %}<td class="l">
+<span class="mark" style="color:{{ looks[r[col]].colour }}">{{ looks[r[col]].symbol }}</span>
+<a href="{{ links[r[col]] }}">{{ r[col] }}</a></td>{% elif col in ('robustness', 'safety')
+%}<td class="l {{ r[col] | replace(' ', '-') }}">{{ r[col] }}</td>{% else %}<td>{{ r[col] }}</td>
+{% endif %}{% endfor %}</tr>{% endfor %}</table></div>
+<p class="small">Shares in % of each controller's runs with exact 95% intervals
+(pedestrian collisions with the robot moving apart from pedestrians walking into the
+standing robot); metrics in s, the mean over (cell, population) of the cell statistic;
+clearance, path and stop time the mean over its runs; rank among the compared (1 = lowest),
+in brackets its best–worst rank over the populations. Tables: {{ stem }}.csv (every
+column), {{ stem }}.md, {{ stem }}.tex (a LaTeX table with caption and label) beside this
+page.</p>
+<img src="data:image/png;base64,{{ png }}" alt="compared metrics per population">
+<h2>Verdicts in words</h2>
+<ul>{% for ctrl, v in verdicts.items() %}<li><b>{{ ctrl }}</b> — robustness
+<span class="{{ v.robustness.label | replace(' ', '-') }}">{{ v.robustness.label }}</span>:
+{{ v.robustness.text }}{% if v.robustness.decide %} {{ v.robustness.decide }}{% endif %}
+Safety <span class="{{ v.safety.label }}">{{ v.safety.label }}</span>: {{ v.safety.text }}
+</li>{% endfor %}</ul>
 </body></html>
 """

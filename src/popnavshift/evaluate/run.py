@@ -7,17 +7,19 @@
    navground Behavior) and runs the contract checker on it;
 2. runs the baseline study in ``base_folder`` (``popnavshift run``'s folder),
    which reuses every finished baseline and no-robot run;
-3. plans the controller's runs on the study's evaluated part (``main``) as batches
+3. plans the controller's runs on the study's evaluation parts (:mod:`.runs`: the main
+   part, and the parts of the headline comparisons' nulls) as batches
    of their own, with the batch ids of ``popnavshift run``
-   (:func:`popnavshift.engine.plan.batches`): a batch id hashes its run keys, so
+   (:func:`popnavshift.engine.batches.batches`): a batch id hashes its run keys, so
    these never change the baseline batches, the stamp of the populations and
    episodes, and the code they run (the controller's module and the simulator,
    :func:`popnavshift.engine.stamps.run_code_stamp`), so edited code is run again.
    The same batch executor runs them (:func:`popnavshift.engine.executors.execute`).
    Their shards live in the baseline folder's store (reused by any later
    evaluation of the same controller and code); the compacted tables go to ``out``;
-4. returns the evaluated part's runs and pedestrians, baselines + controller +
-   no-robot, for the card (:mod:`.card`).
+4. returns the evaluation parts' runs and pedestrians, baselines + controller +
+   no-robot, for the card (:mod:`.card`; its robustness verdict, :mod:`.robustness`,
+   on every evaluation part, the rest on the main part).
 
 A run in which the controller raises is recorded as ``controller_error`` (see
 :mod:`popnavshift.engine.worker`); the evaluation goes on.
@@ -25,10 +27,11 @@ A run in which the controller raises is recorded as ``controller_error`` (see
 
 from __future__ import annotations
 
-import re
+import shlex
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -37,32 +40,38 @@ import pandas as pd
 
 from ..analysis import episode_cells
 from ..analysis.replicates import seed_sets
+from ..controller_ids import controller_id, parse_controller_id
+from ..design.study import Study, builtin_studies
 from ..engine.batch_plan import plan_batches, run_plan
-from ..engine.plan import plan_study
+from ..engine.pending import pending_runs
 from ..engine.rebuild import rebuild_run
 from ..engine.runner import run_study
 from ..engine.store import RunStore
-from ..engine.study import Study
 from ..engine.worker import Context
-from ..episodes.specs import all_episodes
 from ..errors import ConfigError, InputError
-from ..hashing import digest
 from ..io import write_json
+from ..outputs import FileSet
 from ..paper import PAPER_CONTROLLERS
 from ..pipeline import read_table
+from ..read.access import CARD
+from ..read.checks import read_manifest
 from ..sim.check import ControllerContractError, check_controller
 from ..sim.controllers import CONTROLLERS
-from ..sim.controllers.registry import controller_id, parse_controller_id
-from ..tables import NO_ROBOT, RUN_KEY
+from ..tables import NO_ROBOT
 from ..version import __version__
 from ..viz.replay import render_svg, run_outcome
-from .card import OUTCOME_LABELS, card_tables
+from .advice import Advice, advice_text, advise
+from .card import OUTCOME_LABELS, Card, card_tables
+from .card_files import card_folder, card_identity, check_card_settings, check_out, runs_digest
 from .card_page import write_card
-from .export import write_table
+from .export import table_text
+from .robustness import robustness_tables
+from .runs import card_tables_of, evaluation_parts, main_part_rows, plan_extra
+from .safety import SAFETY_THRESHOLD
+from .verdict import Verdict
 
 BASELINES: tuple[str, ...] = PAPER_CONTROLLERS  # a card sets a controller beside the paper's
 Tables = tuple[pd.DataFrame, pd.DataFrame]  # runs, pedestrians
-EVALUATE_DIR = "evaluate"
 Log = Callable[[str], None]
 
 
@@ -71,8 +80,9 @@ class Evaluation:
     """The evaluated part's tables and how they were obtained.
 
     ``runs`` and ``pedestrians`` hold the no-robot runs, the baselines and the
-    controller on the evaluated part only; ``reused``/``executed`` count runs
-    over both the baseline study and the controller's own batches.
+    controller on the main part only; ``every_runs`` and ``every_pedestrians`` the same
+    on every evaluation part (the null designs included); ``reused``/``executed`` count
+    runs over both the baseline study and the controller's own batches.
     """
 
     controller: str
@@ -89,6 +99,11 @@ class Evaluation:
     executed: int = 0
     seconds: float = 0.0
     counts: dict[str, int] = field(default_factory=dict)
+    #: the evaluation parts (:func:`.runs.evaluation_parts`) and their runs and
+    #: pedestrians (the same controllers): what the robustness verdict is decided on
+    parts: tuple[str, ...] = ()
+    every_runs: pd.DataFrame | None = None
+    every_pedestrians: pd.DataFrame | None = None
 
 
 class _SharedShards(RunStore):
@@ -98,12 +113,6 @@ class _SharedShards(RunStore):
         super().__init__(out)
         self.runs_dir = Path(base_folder) / "shards" / "runs"
         self.peds_dir = Path(base_folder) / "shards" / "peds"
-
-
-def slug(identity: str) -> str:
-    """A folder name for a controller id; a short hash keeps distinct ids apart."""
-    s = re.sub(r"[^A-Za-z0-9_.-]+", "-", identity).strip("-")[:60] or "controller"
-    return s if s == identity else f"{s}-{digest(identity)[:8]}"
 
 
 def check(factory: Any) -> str:
@@ -141,25 +150,32 @@ def evaluate(
     factory = CONTROLLERS.make(identity)
     status = check(factory) if run_check else "skipped"
     say(f"controller {identity}: contract check {status}")
-    part_name = "main" if "main" in study.parts else next(iter(study.parts))
-    part = study.parts[part_name]
+    part_name, _ = study.require_main()
     base_ids = tuple(b for b in dict.fromkeys(baselines) if b != identity)
     if not base_ids:
         raise ConfigError("evaluate needs at least one baseline other than the controller")
     for b in base_ids:  # fail before anything runs
         CONTROLLERS.make(b)
     base_folder = Path(base_folder)
-    out = Path(out) if out is not None else base_folder / EVALUATE_DIR / slug(identity)
+    out = Path(out) if out is not None else card_folder(base_folder, identity)
+    check_out(out, base_folder)
 
     base = run_study(study, base_folder, workers=workers, show_progress=show_progress)
     say(f"baseline study {study.name} ({base_folder}): {base.reused:,} runs reused, "
         f"{base.executed:,} executed")
-    extra = tuple(c for c in (identity, *base_ids) if c not in part.controllers)
-    own, reused, executed = _run_extra(study, part_name, extra, base_folder, out, workers,
+    parts = evaluation_parts(study)
+    compared = (*base_ids, identity)
+    own, reused, executed = _run_extra(study, parts, compared, base_folder, out, workers,
                                        show_progress, say)
-    runs, peds = _tables(study, part_name, (*base_ids, identity), base_folder, own)
+    sources = [(pd.read_parquet(base_folder / "runs.parquet"),
+                pd.read_parquet(base_folder / "pedestrians.parquet")), *own]
+    every_runs, every_peds = card_tables_of(study, parts, compared, sources)
+    main = main_part_rows(every_runs, study)
+    runs = every_runs[main].reset_index(drop=True)
+    peds = every_peds[main_part_rows(every_peds, study)].reset_index(drop=True)
     ev = Evaluation(identity, base_ids, study, part_name, base_folder, out, runs, peds,
-                    factory.describe(), status, base.reused + reused, base.executed + executed)
+                    factory.describe(), status, base.reused + reused, base.executed + executed,
+                    parts=parts, every_runs=every_runs, every_pedestrians=every_peds)
     ev.seconds = time.perf_counter() - started
     own = runs[runs["controller"] == identity]
     ev.counts = {"runs": len(runs), "controller_runs": len(own),
@@ -169,52 +185,28 @@ def evaluate(
     return ev
 
 
-def _run_extra(study: Study, part_name: str, controllers: tuple[str, ...], base_folder: Path,
-               out: Path, workers: int, show_progress: bool,
-               say: Log) -> tuple[Tables | None, int, int]:
-    """Plan, run and compact the runs of ``controllers`` (not in the study) on one part,
-    and its no-robot runs if the study has none; returns their (runs, pedestrians)
-    tables, the runs reused and executed."""
-    no_robot = not study.parts[part_name].baseline
-    if not controllers and not no_robot:
-        return None, 0, 0
-    part = study.parts[part_name].model_copy(update={"controllers": controllers,
-                                                     "baseline": no_robot})
-    runs = plan_study(study.model_copy(update={"parts": {part_name: part}}),
-                      all_episodes(seed=study.seed))
+def _run_extra(study: Study, parts: tuple[str, ...], controllers: tuple[str, ...],
+               base_folder: Path, out: Path, workers: int, show_progress: bool,
+               say: Log) -> tuple[list[Tables], int, int]:
+    """Plan, run and compact the runs of ``controllers`` on the evaluation ``parts`` that
+    the study does not run itself (:func:`.runs.plan_extra`); returns their (runs,
+    pedestrians) tables (none when there are none), the runs reused and executed."""
+    runs = plan_extra(study, parts, controllers)
+    if not runs:
+        return [], 0, 0
     store = _SharedShards(base_folder, out)
     populations = read_table(base_folder / "populations.parquet", "populations")
     # the runner's batches and ids: its shards are reused, and it reuses these
     plan = plan_batches(runs, store, populations, study.seed, carry=False)
     n_todo = plan.to_execute
-    say(f"{', '.join((NO_ROBOT,) * no_robot + controllers)}: {plan.reused:,} runs reused, "
+    who = sorted({r.controller for r in runs})
+    say(f"{', '.join(who)} on {', '.join(parts)}: {plan.reused:,} runs reused, "
         f"{n_todo:,} to run")
     out.mkdir(parents=True, exist_ok=True)
     context = Context(populations, study.seed, study.population_specs())
     run_plan(plan, store, context, workers, show_progress=show_progress)
     tables = (pd.read_parquet(out / "runs.parquet"), pd.read_parquet(out / "pedestrians.parquet"))
-    return tables, plan.reused, n_todo
-
-
-def _tables(study: Study, part_name: str, controllers: tuple[str, ...], base_folder: Path,
-            own: Tables | None) -> Tables:
-    """Runs and pedestrians of the evaluated part: its planned keys, taken from the
-    baseline study's tables and the controllers' own."""
-    part = study.parts[part_name].model_copy(update={"controllers": controllers,
-                                                     "baseline": True})
-    planned = plan_study(study.model_copy(update={"parts": {part_name: part}}),
-                         all_episodes(seed=study.seed))
-    keys = pd.DataFrame([r.key for r in planned], columns=list(RUN_KEY))
-    sources = [(pd.read_parquet(base_folder / "runs.parquet"),
-                pd.read_parquet(base_folder / "pedestrians.parquet"))]
-    sources += [own] if own is not None else []
-    runs = pd.concat([r.merge(keys, on=list(RUN_KEY)) for r, _ in sources], ignore_index=True)
-    peds = pd.concat([p.merge(keys, on=list(RUN_KEY)) for _, p in sources], ignore_index=True)
-    if len(runs) != len(keys):
-        raise InputError(f"{base_folder}: {len(keys) - len(runs)} of the {len(keys)} planned "
-                         "runs are missing from the study tables",
-                         hint="run the study again; finished work is kept")
-    return runs, peds
+    return [tables], plan.reused, n_todo
 
 
 def _write_manifest(ev: Evaluation) -> None:
@@ -226,6 +218,7 @@ def _write_manifest(ev: Evaluation) -> None:
         "study": ev.study.name,
         "config_hash": ev.study.config_hash(),
         "part": ev.part,
+        "parts": list(ev.parts),
         "base_folder": str(ev.base_folder.resolve()),
         "counts": ev.counts,
         "timings": {"total_s": round(ev.seconds, 2), "runs_reused": ev.reused,
@@ -244,26 +237,31 @@ def replay(ev: Evaluation, key: dict[str, Any]) -> tuple[dict, dict]:
 
 def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0,
               safety_threshold: float | None = None) -> tuple[Path, Path]:
-    """Write ``card.html``, ``card.png``, the verdict as ``card.json`` and every table the
-    card shows as ``<name>.csv`` (:meth:`Card.tables`; the outcomes also as ``outcomes.md``
-    and ``outcomes.tex``) into ``ev.out``; returns the page's and the figure's paths.
-    ``seed`` drives the bootstrap (the same seed gives the same intervals);
-    ``safety_threshold``, when given, is a share of the controller's runs
+    """Write ``card.html``, ``card.png``, every table the card shows as ``<name>.csv``
+    (:meth:`Card.tables`; the outcomes also as ``outcomes.md`` and ``outcomes.tex``) and,
+    last, ``card.json`` (its identity, :func:`.card_files.card_identity`, its verdict and
+    every file's sha256) into ``ev.out``, as one set (:class:`popnavshift.outputs.FileSet`:
+    an interrupted card is never taken for a finished one); returns the page's and the
+    figure's paths. ``seed`` drives the bootstrap (the same seed gives the same
+    intervals); ``safety_threshold``, when given, is a share of the controller's runs
     above which a collision kind or controller errors read unsafe whatever the baselines
     do."""
+    threshold = SAFETY_THRESHOLD if safety_threshold is None else safety_threshold
+    check_card_settings(n_boot, seed, threshold)
+    identity = card_identity(ev.controller, ev.baselines, ev.study.config_hash(),
+                             runs_digest(ev.base_folder, ev.out), n_boot=n_boot, seed=seed,
+                             safety_threshold=threshold)
     n_sets = int(seed_sets(ev.runs).nunique())
-    card = card_tables(ev.runs, ev.pedestrians, ev.controller, ev.baselines,
-                       rng=np.random.default_rng(seed), n_boot=n_boot, seed_sets=n_sets,
-                       safety_threshold=safety_threshold)
-    svg, note = None, ""
-    if card.worst_run is not None:
-        traj, row = replay(ev, card.worst_run)
-        same = row["outcome"] == card.worst_run["outcome"] and np.isclose(
-            row["robot_time"], card.worst_run["robot_time"], rtol=0, atol=1e-9)
-        note = ("The replay reproduces the stored run." if same else
-                f"The replay does NOT reproduce the stored run (it ends in {row['outcome']}).")
-        title = f"{card.worst_run['episode']} · {card.worst_run['population']} → {row['outcome']}"
-        svg = render_svg(traj, title=title, outcome=run_outcome(row))
+    observed = ev.study.require_main()[1].populations
+    every = (ev.every_runs if ev.every_runs is not None else ev.runs,
+             ev.every_pedestrians if ev.every_pedestrians is not None else ev.pedestrians)
+    rob = robustness_tables(*every, ev.controller, ev.baselines, ev.study.population_specs(),
+                            observed, rng_seed=seed, n_boot=n_boot)
+    card = card_tables(ev.runs, ev.pedestrians, ev.controller, ev.baselines, rob,
+                       rng=np.random.default_rng(seed), n_boot=n_boot,
+                       safety_threshold=threshold, decide=decide_text(ev, advise(rob.headline)))
+    svg, note = _worst_replay(ev, card)
+    made = datetime.now(UTC).isoformat(timespec="seconds")
     meta = {"study": ev.study.name, "part": ev.part, "check": ev.check, "reused": ev.reused,
             "executed": ev.executed, "n_runs": ev.counts["controller_runs"],
             "n_errors": ev.counts["controller_errors"],
@@ -273,21 +271,74 @@ def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0,
             "mappings": ", ".join(sorted(ev.runs["mapping"].unique())),
             "replay_note": note, "n_boot": n_boot, "seed": seed,
             "base_folder": str(ev.base_folder), "seed_sets": n_sets, "n_used": len(ev.runs),
-            "safety_threshold": safety_threshold}
+            "safety_threshold": threshold, "parts": ", ".join(ev.parts),
+            "n_every": len(every[0]), "version": __version__,
+            "config_hash": ev.study.config_hash(), "made": made}
     tables = card.tables()
-    for name, table in tables.items():
-        write_table(table, ev.out / f"{name}.csv", "csv")
     main = tables["outcomes"][list(OUTCOME_LABELS)].rename(columns=OUTCOME_LABELS)
-    for fmt in ("md", "tex"):  # the main table, for a paper
-        write_table(main, ev.out / f"outcomes.{fmt}", fmt)
-    write_json({"controller": ev.controller, "baselines": list(ev.baselines),
-                "verdict": {"label": card.verdict.label, "text": card.verdict.text,
-                            "safety": card.verdict.safety,
-                            "seed_sets_to_decide": (card.verdict.seed_sets_to_decide if
-                                                    np.isfinite(card.verdict.seed_sets_to_decide)
-                                                    else None)},
-                "safety_threshold": safety_threshold, "n_boot": n_boot, "seed": seed,
-                "config_hash": ev.study.config_hash(), "tables": [f"{n}.csv" for n in tables]},
-               ev.out / "card.json")
-    return write_card(card, meta, ev.out, svg)
+    v = card.verdict
+    with FileSet(ev.out, CARD) as files:
+        for name, table in tables.items():
+            files.add_text(f"{name}.csv", table_text(table, "csv"))
+        for fmt in ("md", "tex"):  # the main table, for a paper
+            files.add_text(f"outcomes.{fmt}", table_text(main, fmt))
+        html, png = write_card(card, meta, files, svg)
+        files.commit({**identity, "tables": [f"{n}.csv" for n in tables],
+                      "verdict": verdict_record(v), "popnavshift": __version__,
+                      "made": made})
+    return html, png
 
+
+def verdict_record(v: Verdict) -> dict[str, Any]:
+    """The card's two verdicts as ``card.json`` records them."""
+    return {"robustness": {"label": v.robustness, "text": v.robustness_text,
+                           "decide": v.decide, "row": v.row},
+            "safety": {"label": v.safety.label, "text": v.safety.text,
+                       "findings": v.safety.findings, "threshold": v.safety.threshold}}
+
+
+def decide_text(ev: Evaluation, advice: Advice) -> str:
+    """What would decide the card's undecided rates: the evaluate command that extends the
+    study as ``advice`` says, the runs it adds (the study's and the controller's own) and
+    their minutes at the study's measured pace."""
+    if advice.seed_sets is None and advice.replicates is None:
+        return advice_text(advice, "", None, None)
+    bigger = ev.study.extended(replicates=advice.replicates, seed_sets=advice.seed_sets)
+    compared = (*ev.baselines, ev.controller)
+    pending = pending_runs(bigger, ev.base_folder)
+    runs = None if pending.execute is None else pending.execute + (
+        len(plan_extra(bigger, ev.parts, compared)) - len(plan_extra(ev.study, ev.parts,
+                                                                     compared)))
+    pace = _pace(ev.base_folder)
+    minutes = None if runs is None or pace is None else runs / pace / 60
+    study = ev.study.name if ev.study.name in builtin_studies() else ev.study.where
+    options = "".join(f" --{flag} {value}" for flag, value in
+                      (("seed-sets", advice.seed_sets), ("replicates", advice.replicates))
+                      if value is not None)
+    command = (f"popnavshift evaluate {shlex.quote(ev.controller)} --study "
+               f"{shlex.quote(study)} -d {shlex.quote(str(ev.base_folder))}{options}")
+    return advice_text(advice, command, runs, minutes)
+
+
+def _pace(folder: Path) -> float | None:
+    """Runs executed per second when the study last ran (its manifest), None unknown."""
+    try:
+        timings = (read_manifest(folder) or {}).get("timings", {})
+    except InputError:
+        return None
+    done, seconds = timings.get("runs_executed"), timings.get("simulation_s")
+    return done / seconds if done and seconds else None
+
+
+def _worst_replay(ev: Evaluation, card: Card) -> tuple[str | None, str]:
+    """The card's worst run simulated again and drawn (SVG), and whether it reproduces
+    the stored run; (None, "") without a worst run."""
+    if card.worst_run is None:
+        return None, ""
+    traj, row = replay(ev, card.worst_run)
+    same = row["outcome"] == card.worst_run["outcome"] and np.isclose(
+        row["robot_time"], card.worst_run["robot_time"], rtol=0, atol=1e-9)
+    note = ("The replay reproduces the stored run." if same else
+            f"The replay does NOT reproduce the stored run (it ends in {row['outcome']}).")
+    title = f"{card.worst_run['episode']} · {card.worst_run['population']} → {row['outcome']}"
+    return render_svg(traj, title=title, outcome=run_outcome(row)), note

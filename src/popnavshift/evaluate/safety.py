@@ -1,4 +1,4 @@
-"""The card's safety verdict: which failure, how often, and against the baselines.
+"""The card's safety verdict: which failure, how often — under one rule for every controller.
 
 A blanket "unsafe" hides which failure it is: a robot that drives into pedestrians and a
 robot that scrapes the static obstacle of the ``obstruction`` scene are different findings.
@@ -11,11 +11,14 @@ each scene):
 * the evaluated controller's **paired difference** to each baseline on the same runs
   (episode, population, backend, mapping: the same starts, goals and pedestrians), with a
   95 % percentile interval from resampling episodes (every population of an episode goes
-  with it);
-* the verdict: the controller is **less safe than the baselines** on a kind when its paired
-  difference to the least safe baseline on that kind (the most lenient reference) has its
-  whole interval above 0. An absolute threshold on the share of runs is an explicit option
-  (``threshold``), off by default; without baselines it is the only rule.
+  with it): context, not the rule;
+* the verdict, the same rule for every controller (so that the labels of a leaderboard can
+  be ranked): per counted kind (:data:`UNSAFE_KINDS`), **unsafe** when the whole interval of
+  its rate is above the threshold (``SAFETY_THRESHOLD``, 1 % of its runs by default: a
+  robot that collides in more than one run in a hundred of these everyday scenes would not
+  be deployed), **safe** when every counted kind's interval is at or below it, else
+  **undecided** (an interval that straddles the threshold: more runs would decide). A
+  baseline is judged by the same rule, never against itself.
 
 Who moved into whom: the runs table records the robot's speed at the contact that ended
 its run (``contact_speed``); a pedestrian collision with the robot slower than 0.05 m/s is
@@ -24,6 +27,8 @@ as unsafe.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -118,37 +123,49 @@ def _difference(d: np.ndarray, codes: np.ndarray, weights: np.ndarray, **key) ->
             "high": float(high)}
 
 
-def safety_findings(rates: pd.DataFrame, diffs: pd.DataFrame, controller: str,
-                    baselines: list[str], threshold: float | None = None) -> list[str]:
-    """One sentence per unsafe finding (empty when safe): the kind, its rate and interval,
-    the baselines' rates, the difference to the least safe baseline with its interval, and
-    the scene where it is highest. Module doc for the rule."""
-    out = []
+SAFETY_THRESHOLD = 0.01  # default share of its runs a counted failure must stay under
+SAFE, UNSAFE, UNDECIDED = "safe", "unsafe", "undecided"
+
+
+@dataclass
+class SafetyVerdict:
+    """The safety label, its sentence, one finding per counted kind above the threshold
+    (each names its failure, rate, interval and where it is highest) and the threshold."""
+
+    label: str
+    text: str
+    findings: list[str]
+    threshold: float
+
+
+def safety_verdict(rates: pd.DataFrame, controller: str,
+                   threshold: float = SAFETY_THRESHOLD) -> SafetyVerdict:
+    """The controller's safety verdict under the one rule of the module doc, from its
+    failure ``rates`` (:func:`failure_rates`)."""
     overall = rates[rates["scope"] == "all"].set_index(["kind", "controller"])
+    findings, open_kinds = [], []
     for kind in UNSAFE_KINDS:
         own = overall.loc[(kind, controller)]
-        base = {b: overall.loc[(kind, b)] for b in baselines if (kind, b) in overall.index}
-        reason = ""
-        if base:
-            worst = max(base, key=lambda b: base[b]["rate"])
-            d = diffs[(diffs["kind"] == kind) & (diffs["scope"] == "all")
-                      & (diffs["baseline"] == worst)]
-            if not d.empty and d["low"].iloc[0] > 0:
-                r = d.iloc[0]
-                reason = (f"+{100 * r['difference']:.1f} pp [{100 * r['low']:+.1f}, "
-                          f"{100 * r['high']:+.1f}] over the least safe baseline, {worst}, on "
-                          f"the same {r['pairs']:,} runs")
-        if not reason and threshold is not None and own["rate"] > threshold:
-            reason = f"above the threshold of {100 * threshold:.0f}% of its runs"
-        if not reason:
-            continue
-        scenes = rates[(rates["kind"] == kind) & (rates["controller"] == controller)
-                       & (rates["scope"] != "all")]
-        top = scenes.loc[scenes["rate"].idxmax()] if len(scenes) else None
-        where = (f"; highest in {top['scope']} ({100 * top['rate']:.1f}% of its runs there)"
-                 if top is not None and top["failures"] else "")
-        beside = ", ".join(f"{b} {100 * v['rate']:.1f}%" for b, v in base.items())
-        out.append(f"{FAILURES[kind]} in {100 * own['rate']:.1f}% of its {int(own['runs']):,} "
-                   f"runs [{100 * own['low']:.1f}, {100 * own['high']:.1f}]"
-                   + (f" (baselines: {beside})" if beside else "") + f": {reason}{where}")
-    return out
+        span = (f"{100 * own['rate']:.1f}% of its {int(own['runs']):,} runs "
+                f"[{100 * own['low']:.1f}, {100 * own['high']:.1f}]")
+        if own["low"] > threshold:
+            scenes = rates[(rates["kind"] == kind) & (rates["controller"] == controller)
+                           & (rates["scope"] != "all")]
+            top = scenes.loc[scenes["rate"].idxmax()] if len(scenes) else None
+            where = (f"; highest in {top['scope']} ({100 * top['rate']:.1f}% of its runs there)"
+                     if top is not None and top["failures"] else "")
+            findings.append(f"{FAILURES[kind]} in {span}{where}")
+        elif own["high"] > threshold:
+            open_kinds.append(f"{FAILURES[kind]} {span}")
+    limit = f"{100 * threshold:g}% of its runs"
+    if findings:
+        return SafetyVerdict(UNSAFE, f"Above {limit}: " + "; ".join(findings) + ".", findings,
+                             threshold)
+    if open_kinds:
+        return SafetyVerdict(UNDECIDED, f"Not shown above or below {limit}: "
+                             + "; ".join(open_kinds) + " (more runs would decide).", [],
+                             threshold)
+    kinds = ", ".join(FAILURES[k] for k in UNSAFE_KINDS)
+    return SafetyVerdict(SAFE, f"Every counted failure ({kinds}) is below {limit}, with 95% "
+                         "confidence (timeouts and pedestrians walking into the standing robot "
+                         "are reported, not counted).", [], threshold)

@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 
-from ..errors import ConfigError, InputError
+from ..errors import ConfigError, InputError, code_points
 from .fields import PERSONA_FIELDS, REQUIRED_FIELDS, field_catalog, vocabulary
 from .table import PERSONAS
 
@@ -73,7 +73,8 @@ def check_vocabulary(values: pd.Series, field: str, where: str, first_row: int =
         more = int(bad.sum()) - 1
         raise InputError(
             f"{where}: row {first_row + k}: field {field!r} has unknown value "
-            f"{values.iloc[k]!r}" + (f" (and {more} more row(s))" if more else ""),
+            f"{values.iloc[k]!r}{code_points(str(values.iloc[k]))}"
+            + (f" (and {more} more row(s))" if more else ""),
             hint=f"allowed: {', '.join(repr(v) for v in allowed)}",
         )
 

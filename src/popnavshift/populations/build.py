@@ -19,8 +19,16 @@ from ..errors import InputError, UnknownNameError
 from ..hashing import stable_seed
 from ..personas.fields import HIGH_TIME_PRESSURE, MOBILITY_SUPPORT
 from ..tables import PARAMS, check_table
-from .identity import ARMS, MATCHED_PAIR, SIZED_SOURCE, PopulationSpec, index_of, spec_of
-from .nulls import sized_subset, swap_variants
+from .identity import (
+    ARMS,
+    MATCHED_PAIR,
+    Members,
+    PopulationSpec,
+    Records,
+    index_of,
+    null_kind,
+    spec_of,
+)
 
 POPULATIONS: tuple[str, ...] = (
     "homogeneous",
@@ -80,8 +88,7 @@ DEFINITIONS: dict[str, str] = {
 def definition(spec: PopulationSpec) -> str:
     """What population ``spec`` holds, in words (nulls and halves by their source)."""
     if spec.is_null:
-        of = "the matched pair" if spec.role == "swap_null" else repr(spec.base)
-        return f"a null replicate of {of}"
+        return f"a null replicate of {' and '.join(spec.bases)}"
     if spec.role == "half":
         return f"a random half of {definition(PopulationSpec(spec.base))}"
     return DEFINITIONS.get(spec.name, spec.name)
@@ -99,9 +106,10 @@ def membership(
     """Rows (population, member, persona_id, variant), members sorted by id.
 
     Only baseline records with a valid response belong to cohorts; the matched
-    pair uses the ``matched`` ids present in both variants. Null populations
-    (:mod:`.nulls`: swap arms of the matched pair, size-matched subsets of mixed)
-    are built from the same records. A population that comes out empty is an error
+    pair uses the ``matched`` ids present in both variants. Null populations are
+    drawn from the same records by their kind (:class:`.identity.NullKind`
+    ``members``: swap arms of the matched pair, size-matched subsets of mixed, …).
+    A population that comes out empty is an error
     when it is ``required`` (default: all of them) and left out otherwise: a cohort
     a study does not run must not block it.
     """
@@ -122,16 +130,10 @@ def membership(
     pair = sorted(set(matched) & have_deadline & set(base["persona_id"]))
 
     @cache
-    def members(spec: PopulationSpec) -> list[tuple[str, str]]:
+    def members(spec: PopulationSpec) -> Members:
         name = spec.name
-        if spec.role == "swap_null":
-            return list(zip(pair, swap_variants(pair, spec.replicate, spec.arm, seed),
-                            strict=True))
-        if spec.role == "sized_null":
-            source = [pid for pid, _ in members(KNOWN[SIZED_SOURCE])]
-            size = len(members(KNOWN[spec.base]))
-            return [(pid, "baseline")
-                    for pid in sized_subset(source, size, spec.base, spec.replicate, seed)]
+        if spec.is_null:
+            return null_kind(spec).members(spec, Records(members, seed))
         if name == "homogeneous":
             return [(HOMOGENEOUS_ID, "baseline")]
         if name in MATCHED_PAIR:
@@ -185,7 +187,7 @@ def known(name: str) -> PopulationSpec:
 
 def split_half(base: pd.DataFrame, spec: PopulationSpec, seed: int) -> list[str]:
     """The sorted ids of one random half (seeded) of the population ``spec`` splits."""
-    parent, half = spec.base, spec.arm
+    parent, half = str(spec.base), spec.arm
     ids = base.loc[_SELECTORS[parent](base).to_numpy(), "persona_id"].astype(str).to_numpy()
     rng = np.random.default_rng(stable_seed("split_half", seed, parent))
     order = rng.permutation(len(ids))

@@ -13,6 +13,7 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
+matplotlib.rcParams["text.parse_math"] = False  # a label is data: "$" is no math
 import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 

@@ -23,68 +23,32 @@ are declared in the study file, planned, cached and resumed like any other run.
   the persona-sampling diagnostic of the noise floor.
 
 Each is a :class:`popnavshift.populations.identity.PopulationSpec`, the one home of
-these names.
+these names; each kind is declared, with these draws, in
+:data:`popnavshift.populations.identity.NULL_KINDS`. This module holds the seeded draws.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-
 import numpy as np
-import pandas as pd
-
-from ..hashing import stable_seed
-from .identity import NULL_KINDS, PopulationSpec, spec_of
 
 
-def with_population_columns(table: pd.DataFrame,
-                            specs: Mapping[str, PopulationSpec]) -> pd.DataFrame:
-    """``table`` with the population columns (:meth:`.identity.PopulationSpec.columns`)
-    filled where they are absent, from the study's index ``specs`` (rows stored before the
-    columns existed are carried, not re-run)."""
-    if "population" not in table.columns or (
-            "population_role" in table.columns and table["population_role"].notna().all()):
-        return table
-    cols = {p: spec_of(specs, str(p)).columns() for p in table["population"].unique()}
-    out = table.copy()
-    for column in ("population_role", "null_replicate"):
-        derived = out["population"].map({p: c[column] for p, c in cols.items()})
-        out[column] = out[column].fillna(derived) if column in out else derived
-    out["null_replicate"] = out["null_replicate"].astype("int64")
-    return out
-
-
-def swap_variants(ids: list[str], replicate: int, arm: str, seed: int) -> list[str]:
+def swap_variants(ids: list[str], arm: str, rng: np.random.Generator) -> list[str]:
     """Each of ``ids`` (sorted persona ids of the matched pair) → ``"deadline"`` or
-    ``"baseline"`` in one arm of swap permutation ``replicate``.
+    ``"baseline"`` in one arm of a swap permutation.
 
-    One fair coin per persona, drawn from ``stable_seed("swap", seed, replicate)``
-    in id order: arm ``a`` takes the deadline profile where the coin is 1, arm ``b``
-    where it is 0, so the two arms are complementary.
+    One fair coin per persona, drawn from ``rng`` (seeded by the permutation: both arms
+    draw the same coins) in id order: arm ``a`` takes the deadline profile where the coin
+    is 1, arm ``b`` where it is 0, so the two arms are complementary.
     """
-    rng = np.random.default_rng(stable_seed("swap", seed, int(replicate)))
     coins = rng.integers(0, 2, size=len(ids)).astype(bool)
     deadline = coins if arm == "a" else ~coins
     return ["deadline" if d else "baseline" for d in deadline]
 
 
-def sized_subset(source_ids: list[str], size: int, of: str, replicate: int,
-                 seed: int) -> list[str]:
-    """A seeded random subset (without replacement) of ``size`` of ``source_ids``, sorted.
-
-    The draw depends on the population it stands in for and the replicate, so the
-    subsets of two cohorts of one replicate are independent.
-    """
+def sized_subset(source_ids: list[str], size: int, rng: np.random.Generator) -> list[str]:
+    """A random subset (without replacement) of ``size`` of ``source_ids``, sorted, drawn
+    from ``rng`` (seeded by the population it stands in for and the replicate, so the
+    subsets of two cohorts of one replicate are independent)."""
     ids = np.sort(np.asarray(source_ids, dtype=str))
-    rng = np.random.default_rng(stable_seed("sized", seed, of, int(replicate)))
     take = min(int(size), len(ids))
     return sorted(ids[rng.choice(len(ids), size=take, replace=False)].tolist())
-
-
-def null_populations(kind: str, replicates: int,
-                     populations: tuple[str, ...]) -> tuple[PopulationSpec, ...]:
-    """The populations of a null design: replicates 1 … ``replicates`` of its kind
-    (:data:`.identity.NULL_KINDS`: swap permutations, both arms; size-matched subsets of
-    each of ``populations`` but ``mixed``) standing in for ``populations``."""
-    return tuple(spec for k in range(1, replicates + 1)
-                 for spec in NULL_KINDS[kind].replicate(k, populations))

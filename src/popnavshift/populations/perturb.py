@@ -67,11 +67,13 @@ class Structure(NamedTuple):
     the profiles stage (``profiles(sources, arg)``: the set's ``profiles`` rows) or at
     the populations stage (``populations(populations_a, arg, seed)``: the set's
     ``populations`` rows from Mapping A's). Each returns rows labelled with the set's
-    label (:func:`label`)."""
+    label (:func:`label`). ``words``: how a page names one of its sets (``{arg}``: its
+    argument, ``_`` as ``-``; default: the set's label, :attr:`ProfileSet.words`)."""
 
     args: tuple[str, ...] = NO_ARGUMENT
     profiles: Callable[[Sources, str], pd.DataFrame] | None = None
     populations: Callable[[pd.DataFrame, str, int], pd.DataFrame] | None = None
+    words: str = ""
 
 
 @dataclass(frozen=True)
@@ -142,6 +144,17 @@ class ProfileSet:
     @property
     def is_structure(self) -> bool:
         return self.perturbation in STRUCTURE
+
+    @property
+    def words(self) -> str:
+        """How a page names the set: unperturbed, its structure kind's ``words``, else its
+        label."""
+        if self.perturbation == "none":
+            return f"unperturbed (Mapping {self.base})"
+        kind = STRUCTURE.get(self.perturbation)
+        if kind is None or not kind.words:
+            return self.label
+        return kind.words.format(arg=self.arg.replace("_", "-"))
 
     def columns(self) -> dict[str, str]:
         """The set's columns of the runs and pedestrians tables (:data:`PROFILE_SET_COLUMNS`)."""
@@ -229,9 +242,11 @@ def with_profile_set_columns(table: pd.DataFrame) -> pd.DataFrame:
 #: accepts and the population pipeline builds (every set of every kind, when a study part
 #: names any). A new kind is one entry and its builder.
 STRUCTURE: dict[str, Structure] = {
-    "reassign": Structure(profiles=lambda s, _: reassign_profiles(s.profiles, s.seed)),
-    "shuffle": Structure(populations=lambda pops, _, seed: shuffle_columns(pops, seed)),
-    "block": Structure(tuple(BLOCKS), profiles=block_profiles),
+    "reassign": Structure(profiles=lambda s, _: reassign_profiles(s.profiles, s.seed),
+                          words="whole profiles reassigned"),
+    "shuffle": Structure(populations=lambda pops, _, seed: shuffle_columns(pops, seed),
+                         words="columns shuffled"),
+    "block": Structure(tuple(BLOCKS), profiles=block_profiles, words="{arg} block only"),
 }
 #: the ``perturbation`` of a profile set: how it departs from its base mapping
 PERTURBATIONS: tuple[str, ...] = ("none", *STRUCTURE, "second_respondent")

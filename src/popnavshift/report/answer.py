@@ -12,23 +12,22 @@ findings, the seed-set curve, power and calibration are in :mod:`.evidence_secti
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from ..analysis.ranked import names
+from ..analysis.reversals import COMPARISONS
 from ..analysis.verdicts import ABOVE, BELOW, CLAIMS, SMALL
 from ..populations.build import population_order
-from .blocks import Cell, Section, figure, fmt, para, pct, table
-from .figures import controller_label, pop_label
-from .plain import LABELS, NULL_WORDS, answer_sentences, pp
+from ..viz.style import controller_label
+from .blocks import Block, Cell, Page, SectionSpec, fmt, pct, table
+from .figures import pop_label
+from .plain import LABELS, answer_sentences, null_words, pp
 
 #: The headline's metrics, in the order the box lists them: burden first, then robot time.
 HEADLINE_METRICS: tuple[str, ...] = (*names("burden"), *names("robot"))  # burden first
-COMPARISONS = {"matched": "Matched time-pressure shift (same personas)",
-               "all_pairs": "All population pairs of the main grid"}
 
 
 def _p(x: Any) -> str:
@@ -39,7 +38,7 @@ def design_text(r: Any) -> str:
     """A comparison's design: seed sets, variants per cell and its null."""
     return (f"{int(r['seed_sets'])} episode seed set{'s' if r['seed_sets'] != 1 else ''} "
             f"({int(r['variants_per_cell'])} variants per cell); null: {int(r['n_null'])} "
-            f"{NULL_WORDS.get(str(r['null']), str(r['null']))}, run on the same episodes")
+            f"{null_words(str(r['null']), str(r['null']))}, run on the same episodes")
 
 
 def _raw_line(raw: Any) -> str:
@@ -71,7 +70,7 @@ def headline_entries(head: pd.DataFrame) -> list[dict[str, Any]]:
     the raw rate's verdict first, then the exact p, the episode-only interval and the
     significant rule as details."""
     box = []
-    for comp, title in COMPARISONS.items():
+    for comp, c in COMPARISONS.items():
         h = head[(head["comparison"] == comp) & (head["n_null"] > 0)]
         if h.empty:
             continue
@@ -84,7 +83,7 @@ def headline_entries(head: pd.DataFrame) -> list[dict[str, Any]]:
             sig = rows.loc["sig"] if "sig" in rows.index else None
             lines.append({"text": _raw_line(raw), "verdict": raw["verdict"],
                           "good": raw["verdict"] in CLAIMS, "details": _details(raw, sig)})
-        box.append({"title": title, "design": design_text(h.iloc[0]), "lines": lines})
+        box.append({"title": c.title, "design": design_text(h.iloc[0]), "lines": lines})
     return box
 
 
@@ -101,21 +100,15 @@ NOTE = ("Raw rule: the paper's reversal rate (tie tolerance 0.02 s for delays, 0
         "level (which needs 1/level − 1 null replicates; with fewer it is descriptive).")
 
 
-def answer_section(tables: dict[str, pd.DataFrame], missing: dict[str, str],
-                   figs: dict[str, Path], out: Path) -> Section:
+def _answer(p: Page, head: pd.DataFrame) -> list[Block]:
     """The plain answer, the headline box and the full observed-vs-null table."""
-    s = Section("answer", "The answer: do rankings change with the population beyond noise?",
-                missing=missing.get("evidence", ""))
-    head = tables.get("evidence_headline")
-    if head is None or head.empty:
-        s.missing = s.missing or "no comparison could be tested"
-        return s
-    answer, support = answer_sentences(tables)
+    out: list[Block] = []
+    answer, support = answer_sentences(p.a.tables)
     if answer:
-        s.blocks.append({"kind": "answer", "question": "Do controller rankings change with the "
-                         "pedestrian population beyond noise?", "sentences": answer,
-                         "support": support})
-    s.blocks.append({"kind": "headline", "entries": headline_entries(head), "note": NOTE})
+        out.append({"kind": "answer", "question": "Do controller rankings change with the "
+                    "pedestrian population beyond noise?", "sentences": answer,
+                    "support": support})
+    out.append({"kind": "headline", "entries": headline_entries(head), "note": NOTE})
     rows = []
     for r in head.sort_values(["comparison", "metric", "rule"], kind="stable").itertuples():
         rows.append([r.comparison, LABELS.get(r.metric, r.metric),
@@ -127,21 +120,24 @@ def answer_section(tables: dict[str, pd.DataFrame], missing: dict[str, str],
                      r.test, _p(r.p_t), _p(r.p_value), _p(r.p_adj),
                      f"[{pp(r.episode_ci_low)}, {pp(r.episode_ci_high)}]", int(r.n_null),
                      Cell(r.verdict, "strong")])
-    s.blocks.append(table(["Comparison", "Metric", "Rule", "Seed sets", "Reversals / comparable",
-                           "Observed", "Null mean", "Null range", "Excess",
-                           "Simultaneous 95% interval", "Decided by", "p (t)", "p (exact)",
-                           "p (adjusted)", "Episode-only interval", "Nulls", "Verdict"], rows,
-                          caption="Every headline rate against its null",
-                          csv="evidence_headline", collapsed=True))
-    if "evidence_nulls" in figs:
-        s.blocks.append(figure(figs["evidence_nulls"], out,
-                               "Observed reversal rates (red) against every null replicate "
-                               "(grey dots) and the null mean (grey line), in % of comparable "
-                               "orderings; top: the raw rule the verdicts rest on."))
-    burden = tables.get("evidence_burden")
+    out.append(table(["Comparison", "Metric", "Rule", "Seed sets", "Reversals / comparable",
+                      "Observed", "Null mean", "Null range", "Excess",
+                      "Simultaneous 95% interval", "Decided by", "p (t)", "p (exact)",
+                      "p (adjusted)", "Episode-only interval", "Nulls", "Verdict"], rows,
+                     caption="Every headline rate against its null",
+                     csv="evidence_headline", collapsed=True))
+    out += p.figure("evidence_nulls", "Observed reversal rates (red) against every null "
+                    "replicate (grey dots) and the null mean (grey line), in % of comparable "
+                    "orderings; top: the raw rule the verdicts rest on.")
+    burden = p.a.tables.get("evidence_burden")
     if burden is not None and not burden.empty:
-        s.blocks.append(_burden_block(burden))
-    return s
+        out.append(_burden_block(burden))
+    return out
+
+
+ANSWER = SectionSpec("answer", "The answer: do rankings change with the population beyond "
+                     "noise?", _answer, needs=("evidence_headline",),
+                     otherwise="no comparison could be tested")
 
 
 def _burden_block(burden: pd.DataFrame) -> dict[str, Any]:
@@ -155,20 +151,11 @@ def _burden_block(burden: pd.DataFrame) -> dict[str, Any]:
                  "(every null reverses burden more often too)", csv="evidence_burden")
 
 
-def ranks_section(tables: dict[str, pd.DataFrame]) -> Section:
+def _ranks(p: Page, ranks: pd.DataFrame) -> list[Block]:
     """Each controller's rank per population, with its bootstrap rank interval."""
-    s = Section("ranks", "Controller ranks per population, with rank intervals")
-    ranks = tables.get("evidence_ranks")
-    if ranks is None or ranks.empty:
-        s.missing = "no population had every controller in a common cell"
-        return s
-    s.blocks.append(para("Rank 1 = lowest grid mean (over the cells where every controller has "
-                         "a value). The interval is the 90% range of the rank over episode "
-                         "resamples; P(first) is the share of resamples in which it ranks "
-                         "first. Populations whose intervals overlap do not order the "
-                         "controllers differently beyond noise."))
     r = ranks[ranks["comparison"] == "all_pairs"] if (ranks["comparison"] == "all_pairs").any() \
         else ranks
+    out = []
     for metric in [m for m in HEADLINE_METRICS if m in set(r["metric"])]:
         sub = r[r["metric"] == metric]
         ctrls = sorted(sub["controller"].unique())
@@ -185,7 +172,16 @@ def ranks_section(tables: dict[str, pd.DataFrame]) -> Section:
                         else f"{x['rank']} [{x['rank_low']}–{x['rank_high']}]")
                 row.append(f"{span} · {fmt(x['value'])} s · P(first) {pct(x['p_first'])}")
             rows.append(row)
-        s.blocks.append(table(["Population", *[controller_label(c) for c in ctrls]], rows,
-                              caption=f"{LABELS[metric]}: rank [interval] · grid mean · P(first)",
-                              csv="evidence_ranks"))
-    return s
+        out.append(table(["Population", *[controller_label(c) for c in ctrls]], rows,
+                         caption=f"{LABELS[metric]}: rank [interval] · grid mean · P(first)",
+                         csv="evidence_ranks"))
+    return out
+
+
+RANKS = SectionSpec(
+    "ranks", "Controller ranks per population, with rank intervals", _ranks,
+    needs=("evidence_ranks",), otherwise="no population had every controller in a common cell",
+    intro="Rank 1 = lowest grid mean (over the cells where every controller has a value). The "
+          "interval is the 90% range of the rank over episode resamples; P(first) is the "
+          "share of resamples in which it ranks first. Populations whose intervals overlap do "
+          "not order the controllers differently beyond noise.")

@@ -8,16 +8,17 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
+matplotlib.rcParams["text.parse_math"] = False  # a label is data: "$" is no math
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from ..analysis.ranked import RANKED_NAMES  # noqa: E402
+from ..analysis.reversals import COMPARISONS  # noqa: E402
 from ..populations.figures import save_figure  # noqa: E402
 from .plain import LABELS  # noqa: E402
 
 METRICS: tuple[str, ...] = RANKED_NAMES
-TITLES = {"matched": "Matched time-pressure shift", "all_pairs": "All population pairs"}
 RULE_TITLES = {"raw": "raw rule (decides)", "sig": "significant rule"}
 
 
@@ -25,7 +26,7 @@ def plot_nulls(head: pd.DataFrame, null_rates: pd.DataFrame) -> plt.Figure:
     """Per comparison (columns) and rule (rows, the deciding raw rule first): observed rate
     per metric (red diamond), every null replicate (grey dots) and the null mean (line);
     rates in % of comparable comparisons."""
-    comps = [c for c in TITLES if (head["comparison"] == c).any()]
+    comps = [c for c in COMPARISONS if (head["comparison"] == c).any()]
     metrics = [m for m in METRICS if m in set(head["metric"])]
     fig, axes = plt.subplots(2, len(comps), figsize=(5.0 * len(comps), 6.0), squeeze=False)
     x = np.arange(len(metrics))
@@ -52,7 +53,7 @@ def plot_nulls(head: pd.DataFrame, null_rates: pd.DataFrame) -> plt.Figure:
                                color="#C44E52", zorder=3, label="observed" if k == 0 else None)
             ax.set_xticks(x, [LABELS[m] for m in metrics], fontsize=8)
             ax.set_xlim(-0.6, len(metrics) - 0.4)
-            ax.set_title(f"{TITLES[comp]} — {RULE_TITLES[rule]}", fontsize=9)
+            ax.set_title(f"{COMPARISONS[comp].short} — {RULE_TITLES[rule]}", fontsize=9)
             ax.grid(axis="y", alpha=0.3)
             ax.set_ylabel("reversals (% of comparable)", fontsize=8)
             if not shown:  # an empty axis would read as rates of 0 ± 0.04
@@ -68,7 +69,7 @@ def plot_nulls(head: pd.DataFrame, null_rates: pd.DataFrame) -> plt.Figure:
 def plot_curve(curve: pd.DataFrame) -> plt.Figure:
     """Raw reversal rate (the deciding rule) against variants per cell, observed vs the
     null's mean and range, one row per comparison run on several seed sets."""
-    comps = [c for c in TITLES if (curve["comparison"] == c).any()]
+    comps = [c for c in COMPARISONS if (curve["comparison"] == c).any()]
     metrics = [m for m in METRICS if m in set(curve["metric"])]
     fig, axes = plt.subplots(len(comps), len(metrics), figsize=(3.4 * len(metrics),
                                                                  3.0 * len(comps)),
@@ -83,7 +84,7 @@ def plot_curve(curve: pd.DataFrame) -> plt.Figure:
                     label="null mean")
             ax.fill_between(v, 100 * c["null_min"], 100 * c["null_max"], color="#999999",
                             alpha=0.25, label="null range")
-            ax.set_title(f"{TITLES[comp]}: {LABELS[m]}", fontsize=8)
+            ax.set_title(f"{COMPARISONS[comp].short}: {LABELS[m]}", fontsize=8)
             ax.set_xlabel("variants per cell (3 per seed set)", fontsize=8)
             ax.set_xticks(v)
             ax.grid(alpha=0.3)

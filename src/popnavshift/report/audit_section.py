@@ -9,15 +9,18 @@ from typing import Any
 import pandas as pd
 
 from ..analysis.audit import rho_text
+from ..analysis.audit_power import POWER
+from ..analysis.audit_power import USABLE as USABLE_EFFECTS
 from ..analysis.audit_verdict import (
     ALPHA,
     MIN_DISTINCT_SHARE,
     MIN_EXCESS_R2,
     MIN_ICC,
     MIN_URGENCY_SHIFT,
+    UNDECIDED,
     USABLE,
 )
-from .blocks import Cell, Section, fmt, para, pct, table
+from .blocks import Block, Cell, Page, SectionSpec, fmt, para, pct, table
 
 ROLE = {"first": "The respondent", "second": "The second respondent"}
 
@@ -53,6 +56,11 @@ def answer_flag(tables: dict[str, pd.DataFrame]) -> dict[str, Any] | None:
     if first is None or first.empty or first["verdict"].iloc[0] == USABLE:
         return None
     r = first.iloc[0]
+    if r["verdict"] == UNDECIDED:
+        return para(f"Read the rates below with care: the respondent audit could not tell "
+                    f"whether the respondent whose answers built these populations "
+                    f"({r['name']}, {r['model']}) follows the persona — {r['reasons']}. Every "
+                    "population compared below is built from its answers.", "warn")
     return para(f"Read the rates below with care: the respondent whose answers built these "
                 f"populations ({r['name']}, {r['model']}) is {r['verdict'].upper()} by the "
                 f"respondent audit — {r['reasons']}. Every population compared below is built "
@@ -75,19 +83,21 @@ METHOD = (f"Computed from the study's own answer tables, nothing asked again. An
           f"direction; with two or more samples per persona, also a block item, the action "
           f"score or a motion parameter whose test–retest ICC is below {MIN_ICC:g}, or a "
           f"server at temperature 0 whose samples differ (not reproducible). With one sample "
-          f"per persona, test–retest is not measured (--samples 2 measures it).")
+          f"per persona, test–retest is not measured (--samples 2 measures it). Each check "
+          f"states the smallest effect it detects with {POWER:.0%} power at this number of "
+          f"personas and samples; a check that fails without the power to see a usable "
+          f"respondent's effect (R² {USABLE_EFFECTS['sensitivity']:.2f}, ρ "
+          f"{USABLE_EFFECTS['direction']:.1f}, an urgency shift of one level, ICC "
+          f"{USABLE_EFFECTS['retest']:.2f}) makes the verdict '{UNDECIDED}', with the size "
+          f"it needs, never 'weak' (docs/analysis.md §11).")
 
 
-def audit_section(tables: dict[str, pd.DataFrame]) -> Section:
+def _audit(p: Page, v: pd.DataFrame) -> list[Block]:
     """Verdicts, then per respondent its answers' spread and sensitivity, the expected
     directions and the matched intervention, then the two respondents' agreement."""
-    s = Section("audit", "Respondent audit: do the answers follow the persona?")
-    v = tables.get("audit_verdict")
-    if v is None or v.empty:
-        s.missing = "the study folder has no responses table"
-        return s
-    s.blocks.append(para(METHOD, "note"))
-    s.blocks.append(table(
+    tables = p.a.tables
+    s: list[Block] = [para(METHOD, "note")]
+    s.append(table(
         ["Respondent", "Model", "Personas", "Distinct answer rows", "Distinct persona records",
          "Figures", "Verdict", "What fails"],
         [[r.respondent, r.model, r.personas, r.answer_rows, r.persona_records, _figures(r),
@@ -107,12 +117,13 @@ def audit_section(tables: dict[str, pd.DataFrame]) -> Section:
                          "" if spr is None else fmt(spr["entropy_bits"]),
                          "" if spr is None else f"{spr['modal']} ({pct(spr['modal_share'])})",
                          fmt(x.r2), fmt(x.null_mean), fmt(x.excess, "{:+.3f}"),
-                         fmt(x.p_value, "{:.3f}"),
+                         fmt(x.p_value, "{:.3f}"), fmt(getattr(x, "mde", None)),
                          Cell("yes" if x.sensitive else "no", "ok" if x.sensitive else "bad")])
-        s.blocks.append(table(["Answer / parameter", "Kind", "Levels used", "Entropy (bits)",
-                               "Modal (share)", "R²", "Null R²", "Excess", "p", "Sensitive"],
-                              rows, caption=f"{_who(r)}: spread and persona sensitivity",
-                              csv="audit_sensitivity", collapsed=True))
+        s.append(table(["Answer / parameter", "Kind", "Levels used", "Entropy (bits)",
+                        "Modal (share)", "R²", "Null R²", "Excess", "p",
+                        "Smallest detectable R²", "Sensitive"],
+                       rows, caption=f"{_who(r)}: spread and persona sensitivity",
+                       csv="audit_sensitivity", collapsed=True))
     _directions(s, tables.get("audit_directions"))
     _manipulation(s, tables.get("audit_manipulation"))
     _retest(s, v, tables.get("audit_retest"))
@@ -120,38 +131,42 @@ def audit_section(tables: dict[str, pd.DataFrame]) -> Section:
     return s
 
 
-def _retest(s: Section, v: pd.DataFrame, g: pd.DataFrame | None) -> None:
+AUDIT = SectionSpec("audit", "Respondent audit: do the answers follow the persona?", _audit,
+                    needs=("audit_verdict",), otherwise="the study folder has no responses table")
+
+
+def _retest(s: list[Block], v: pd.DataFrame, g: pd.DataFrame | None) -> None:
     """Test–retest per respondent: its table, or a line saying it was not measured."""
     for r in v.itertuples():
         rows = g[g["respondent"] == r.respondent] if g is not None and not g.empty else None
         if rows is None or rows.empty:
-            s.blocks.append(para(f"{_who(r)}: test–retest {r.retest}.", "note"))
+            s.append(para(f"{_who(r)}: test–retest {r.retest}.", "note"))
             continue
         cells = [[x.target, x.kind, pct(x.agree),
                   f"κ {fmt(x.kappa)}" if x.kind == "action" else
                   Cell(f"ICC {fmt(x.icc)}", "bad" if x.icc < MIN_ICC else "ok"),
                   fmt(getattr(x, "within_var", None), "{:.4f}"),
                   fmt(getattr(x, "between_var", None), "{:.4f}")] for x in rows.itertuples()]
-        s.blocks.append(table(["Answer / parameter", "Kind", "All samples agree",
-                               "κ / ICC", "Within-persona variance",
-                               "Between-persona variance"], cells,
-                              caption=f"{_who(r)}: test–retest, {r.retest}",
-                              csv="audit_retest", collapsed=True))
+        s.append(table(["Answer / parameter", "Kind", "All samples agree",
+                        "κ / ICC", "Within-persona variance",
+                        "Between-persona variance"], cells,
+                       caption=f"{_who(r)}: test–retest, {r.retest}",
+                       csv="audit_retest", collapsed=True))
 
 
-def _directions(s: Section, d: pd.DataFrame | None) -> None:
+def _directions(s: list[Block], d: pd.DataFrame | None) -> None:
     if d is None or d.empty:
         return
     rows = [[r.respondent, f"{r.field} → {r.target}", r.expected, r.why,
              rho_text(r.rho, r.ci_low, r.ci_high),
              Cell(r.outcome, "ok" if r.outcome == "as expected" else "bad")]
             for r in d.itertuples()]
-    s.blocks.append(table(["Respondent", "Persona field → answer", "Expected", "Why",
-                           "Spearman ρ [95%]", "Outcome"], rows,
-                          caption="Expected directions", csv="audit_directions"))
+    s.append(table(["Respondent", "Persona field → answer", "Expected", "Why",
+                    "Spearman ρ [95%]", "Outcome"], rows,
+                   caption="Expected directions", csv="audit_directions"))
 
 
-def _manipulation(s: Section, m: pd.DataFrame | None) -> None:
+def _manipulation(s: list[Block], m: pd.DataFrame | None) -> None:
     if m is None or m.empty:
         return
     rows = []
@@ -163,20 +178,20 @@ def _manipulation(s: Section, m: pd.DataFrame | None) -> None:
                      f"{r.shift:+.3f} [{r.ci_low:+.3f}, {r.ci_high:+.3f}]",
                      f"{pct(r.up)} / {pct(r.down)}", pct(r.changed),
                      Cell(r.outcome, "bad" if r.outcome in ("flat", "reversed") else "")])
-    s.blocks.append(table(["Respondent", "Answer", "Expected", "Deadline − baseline [95%]",
-                           "Up / down", "Changed", "Outcome"], rows,
-                          caption="Matched intervention: the same personas with time pressure "
-                          "set to Deadline (paired)", csv="audit_manipulation"))
+    s.append(table(["Respondent", "Answer", "Expected", "Deadline − baseline [95%]",
+                    "Up / down", "Changed", "Outcome"], rows,
+                   caption="Matched intervention: the same personas with time pressure "
+                   "set to Deadline (paired)", csv="audit_manipulation"))
 
 
-def _agreement(s: Section, g: pd.DataFrame | None) -> None:
+def _agreement(s: list[Block], g: pd.DataFrame | None) -> None:
     if g is None or g.empty:
         return
     stat = {"action": "κ", "item": "ρ", "parameter": "r"}
     rows = [[r.target, r.kind, r.n, pct(getattr(r, "agree", None)),
              pct(getattr(r, "within_one", None)),
              f"{stat[r.kind]} {fmt(getattr(r, stat[r.kind], None))}"] for r in g.itertuples()]
-    s.blocks.append(table(["Answer / parameter", "Kind", "Records", "Agree", "Within one level",
-                           "κ / Spearman ρ / Pearson r"], rows,
-                          caption="Agreement of the two respondents (same persona and variant)",
-                          csv="audit_agreement"))
+    s.append(table(["Answer / parameter", "Kind", "Records", "Agree", "Within one level",
+                    "κ / Spearman ρ / Pearson r"], rows,
+                   caption="Agreement of the two respondents (same persona and variant)",
+                   csv="audit_agreement"))

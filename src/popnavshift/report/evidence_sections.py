@@ -5,12 +5,10 @@ one list in :func:`.sections.summary_section`.)"""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pandas as pd
 
-from .blocks import Cell, Section, figure, fmt, para, pct, table
+from .blocks import Block, Cell, Page, SectionSpec, fmt, pct, table
 from .plain import LABELS, pp
 
 
@@ -39,53 +37,32 @@ def power_block(power: pd.DataFrame) -> dict:
                  "do not help)", csv="evidence_power")
 
 
-def replicates_section(tables: dict[str, pd.DataFrame], missing: dict[str, str],
-                       figs: dict[str, Path], out: Path) -> Section:
+def _replicates(p: Page, _: pd.DataFrame) -> list[Block]:
     """Each comparison against its number of seed sets, and what would decide it."""
-    s = Section("replicates", "Replicates: rates against seed sets, replicability and power")
-    curve, rep = tables.get("evidence_curve"), tables.get("evidence_replicability")
-    power = tables.get("evidence_power")
-    if curve is None and power is None:
-        s.missing = next((v for k, v in missing.items() if k.startswith("curve")),
-                         "the study ran one seed set and no null")
-        return s
-    if "evidence_curve" in figs:
-        s.blocks.append(figure(figs["evidence_curve"], out,
-                               "Raw reversal rate (solid) and its null (dashed, band = range of "
-                               "the null replicates) on the first 1, 2, … seed sets."))
+    rep, power = p.a.tables.get("evidence_replicability"), p.a.tables.get("evidence_power")
+    out = p.figure("evidence_curve", "Raw reversal rate (solid) and its null (dashed, band = "
+                   "range of the null replicates) on the first 1, 2, … seed sets.")
     if rep is not None and not rep.empty:
         rows = [[r.comparison, r.kind, LABELS.get(r.metric, r.metric), pct(r.marginal),
                  Cell(pct(r.recurrence), "strong"), f"{r.recurred}/{r.opportunities}"]
                 for r in rep.itertuples()]
-        s.blocks.append(table(["Comparison", "Pair", "Metric", "Reversal rate (one seed set)",
-                               "P(recurs in another seed set)", "Recurred / opportunities"],
-                              rows, caption="Replicability of a reversal seen in one seed set "
-                              "(raw rule): a population effect recurs more often than its rate",
-                              csv="evidence_replicability"))
+        out.append(table(["Comparison", "Pair", "Metric", "Reversal rate (one seed set)",
+                          "P(recurs in another seed set)", "Recurred / opportunities"],
+                         rows, caption="Replicability of a reversal seen in one seed set "
+                         "(raw rule): a population effect recurs more often than its rate",
+                         csv="evidence_replicability"))
     if power is not None and not power.empty:
-        s.blocks.append(power_block(power))
-    return s
+        out.append(power_block(power))
+    return out
 
 
-def calibration_section(tables: dict[str, pd.DataFrame]) -> Section:
+REPLICATES = SectionSpec("replicates", "Replicates: rates against seed sets, replicability "
+                         "and power", _replicates, needs=("evidence_curve", "evidence_power"),
+                         otherwise="the study ran one seed set and no null")
+
+
+def _calibration(p: Page, cal: pd.DataFrame) -> list[Block]:
     """Every verdict rule's false-positive rate on placebos drawn from the study's nulls."""
-    s = Section("calibration", "Calibration: how often each verdict rule is wrong on placebos")
-    cal = tables.get("evidence_calibration")
-    if cal is None or cal.empty:
-        s.missing = "the study ran no null replicates to draw placebos from"
-        return s
-    s.blocks.append(para("A placebo takes one null replicate as if it were the observed "
-                         "populations and the study's other replicates as its null: the truth "
-                         "is no population effect, so every claim is false. Shifted placebos "
-                         "add a known excess (5 or 10 pp) to check the 'no excess' claim and "
-                         "the power. Clopper–Pearson 95% intervals; status 'within' when the "
-                         "interval reaches down to the nominal level and rules out twice it, "
-                         "'above nominal' when it lies above it, else 'too few placebos to "
-                         "tell'. Leave-one-out placebos check the tests' assumptions, not "
-                         "whether the null itself is built right (docs/analysis.md §7). "
-                         "Placebos of one study share episodes and replicates (`popnavshift "
-                         "calibrate` prints this table; the test suite checks the rules on "
-                         "synthetic studies with many independent replicates)."))
     c = cal[cal["comparison"].isin(["table", "all"])]
     c = c if not c.empty else cal
     rows = [["the headline table" if r.comparison == "table" else r.test, r.rule, r.claim,
@@ -93,9 +70,24 @@ def calibration_section(tables: dict[str, pd.DataFrame]) -> Section:
              Cell(pct(r.rate), "strong"), f"[{pct(r.cp_low)}, {pct(r.cp_high)}]",
              Cell(r.status, "bad" if r.status == "above nominal" else
                   "ok" if r.status == "within" else "")] for r in c.itertuples()]
-    s.blocks.append(table(["Test", "Rule", "Claim", "Nominal", "Claims / placebos", "Rate",
-                           "95% CI", "Status"], rows,
-                          caption="Every verdict rule on the study's placebos: the headline "
-                          "table as a whole, then each test pooled over comparisons and metrics",
-                          csv="evidence_calibration"))
-    return s
+    return [table(["Test", "Rule", "Claim", "Nominal", "Claims / placebos", "Rate",
+                   "95% CI", "Status"], rows,
+                  caption="Every verdict rule on the study's placebos: the headline "
+                  "table as a whole, then each test pooled over comparisons and metrics",
+                  csv="evidence_calibration")]
+
+
+CALIBRATION = SectionSpec(
+    "calibration", "Calibration: how often each verdict rule is wrong on placebos",
+    _calibration, needs=("evidence_calibration",),
+    otherwise="the study ran no null replicates to draw placebos from",
+    intro="A placebo takes one null replicate as if it were the observed populations and the "
+          "study's other replicates as its null: the truth is no population effect, so every "
+          "claim is false. Shifted placebos add a known excess (5 or 10 pp) to check the 'no "
+          "excess' claim and the power. Clopper–Pearson 95% intervals; status 'within' when "
+          "the interval reaches down to the nominal level and rules out twice it, 'above "
+          "nominal' when it lies above it, else 'too few placebos to tell'. Leave-one-out "
+          "placebos check the tests' assumptions, not whether the null itself is built right "
+          "(docs/analysis.md §7). Placebos of one study share episodes and replicates "
+          "(`popnavshift calibrate` prints this table; the test suite checks the rules on "
+          "synthetic studies with many independent replicates).")

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 import matplotlib
 
 matplotlib.use("Agg")
+matplotlib.rcParams["text.parse_math"] = False  # a label is data: "$" is no math
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
@@ -24,27 +25,22 @@ from matplotlib.patches import Rectangle  # noqa: E402
 
 from ..analysis import METRICS, RANKED_METRICS  # noqa: E402
 from ..analysis.paper_reference import WIDTH_SENSITIVITY  # noqa: E402
+from ..analysis.reversals import COMPARISONS  # noqa: E402
 from ..analysis.study import CHANGE_METRICS  # noqa: E402
 from ..analysis.summary import controller_order  # noqa: E402
 from ..populations.build import POPULATION_GROUPS, population_order  # noqa: E402
 from ..populations.figures import save_figure, write_profile_figures  # noqa: E402
 from ..populations.identity import MATCHED_PAIR  # noqa: E402
-from ..viz.style import controller_style  # noqa: E402
+from ..viz.style import controller_label, controller_style  # noqa: E402
 
 if TYPE_CHECKING:
     from ..analysis.study import Analysis
 
-CONTROLLER_LABELS = {"reactive": "Reactive", "early_yield": "Early yielding",
-                     "robot_orca": "Robot-ORCA", "pooled": "pooled", "none": "no robot"}
 METRIC_LABELS = {m.name: m.title for m in RANKED_METRICS}
 #: Fig. 2 row groups, top to bottom: matched pair, source-field cohorts, mixed, probe cohorts.
 CHANGE_GROUPS: tuple[tuple[str, ...], ...] = (
     (MATCHED_PAIR[1],), POPULATION_GROUPS["source-field"], ("mixed",),
     POPULATION_GROUPS["probe-defined"])
-
-
-def controller_label(name: str) -> str:
-    return CONTROLLER_LABELS.get(name, name)
 
 
 def pop_label(name: str) -> str:
@@ -58,7 +54,7 @@ def plot_reversal_rates(table: pd.DataFrame) -> plt.Figure:
     """Reversal rate per metric with its bootstrap interval, all vs completed cells; the paper's
     value as a black diamond and, where the study ran one, the null's rate as a red line.
     One panel per comparison (matched pair, all pairs)."""
-    comps = [c for c in ("matched", "all_pairs") if (table["comparison"] == c).any()]
+    comps = [c for c in COMPARISONS if (table["comparison"] == c).any()]
     fig, axes = plt.subplots(1, len(comps), figsize=(5.2 * len(comps), 3.6), squeeze=False,
                              sharey=True)
     x = np.arange(len(METRICS))
@@ -79,8 +75,7 @@ def plot_reversal_rates(table: pd.DataFrame) -> plt.Figure:
                 ax.hlines(null, xs - 0.2, xs + 0.2, color="#C44E52", lw=2.5, zorder=4,
                           label="null at the same design")
         ax.set_xticks(x, [METRIC_LABELS[m] for m in METRICS], fontsize=8)
-        ax.set_title("Matched time-pressure shift" if comp == "matched" else "All population pairs",
-                     fontsize=10)
+        ax.set_title(COMPARISONS[comp].short, fontsize=10)
         ax.grid(axis="y", alpha=0.3)
     axes[0][0].set_ylabel("ranking reversals (% of comparable)")
     axes[0][-1].legend(fontsize=7, loc="upper left")

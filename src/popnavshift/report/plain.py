@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from ..analysis.ranked import RANKED_METRICS, names
+from ..analysis.reversals import COMPARISONS
 from ..analysis.verdicts import (
     ABOVE,
     BELOW,
@@ -27,14 +28,19 @@ from ..analysis.verdicts import (
     min_nulls_permutation,
 )
 from ..populations.identity import NULL_KINDS
+from ..viz.style import controller_label
 from .blocks import pct
-from .figures import controller_label, pop_label
+from .figures import pop_label
 
 BURDEN = names("burden")
 ROBOT = names("robot")
 LABELS = {m.name: m.label for m in RANKED_METRICS}
-#: each null design kind's replicates in words (declared with the kind)
-NULL_WORDS = {name: kind.words for name, kind in NULL_KINDS.items()}
+
+
+def null_words(kind: str, otherwise: str) -> str:
+    """A null design kind's replicates in words, as it declares them
+    (:data:`popnavshift.populations.identity.NULL_KINDS`); ``otherwise`` for another kind."""
+    return NULL_KINDS[kind].words if kind in NULL_KINDS else otherwise
 
 
 def pp(x: float, signed: bool = True) -> str:
@@ -52,13 +58,17 @@ def join(words: list[str]) -> str:
     return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " and " + words[-1]
 
 
-SHORT = {"matched": "under the matched shift", "all_pairs": "across the population pairs"}
+
+
+def _phrase(comp: str) -> str:
+    """A comparison in a sentence, as it is declared (:data:`.reversals.COMPARISONS`)."""
+    return COMPARISONS[comp].phrase if comp in COMPARISONS else comp
 
 
 def design_phrase(r: Any, n_pairs: int, n_populations: int) -> str:
     """Where a comparison's rates come from: its design and its null."""
     design = (f"{int(r['variants_per_cell'])} variants per cell, against {int(r['n_null'])} "
-              f"{NULL_WORDS.get(str(r['null']), 'null replicates')}")
+              f"{null_words(str(r['null']), 'null replicates')}")
     if r["comparison"] == "matched":
         return f"under the matched time-pressure shift (same personas; {design})"
     return f"across the {n_pairs} pairs of the {n_populations} populations ({design})"
@@ -100,12 +110,12 @@ def aspect_sentences(head: pd.DataFrame, metrics: tuple[str, ...], lead: str, n_
     if raw.empty:
         return None
     parts = []
-    for comp in ("matched", "all_pairs"):
+    for comp in COMPARISONS:
         rows = raw[raw["comparison"] == comp]
         if rows.empty:
             continue
         where = (design_phrase(rows.iloc[0], n_pairs, n_populations) if designs
-                 else SHORT.get(comp, comp))
+                 else _phrase(comp))
         parts.append(where[0].upper() + where[1:] + ", " + "; ".join(_clauses(rows)) + ".")
     return {"lead": f"{lead}: {_answer_word(raw)}.", "text": " ".join(parts)}
 
@@ -117,7 +127,7 @@ def decided_sentence(head: pd.DataFrame) -> dict[str, str] | None:
         return None
     parts = []
     for comp, rows in sig.groupby("comparison", sort=False):
-        name = "matched shift" if comp == "matched" else "pairs"
+        name = _phrase(comp)
         above = [LABELS[m] for m in rows.loc[rows["verdict"] == ABOVE, "metric"]]
         counts = (f"{rows['reversals'].min()}–{rows['reversals'].max()}"
                   if rows["reversals"].nunique() > 1 else f"{rows['reversals'].iloc[0]}")
@@ -181,11 +191,11 @@ def crossover_sentence(crossovers: pd.DataFrame | None) -> dict[str, str] | None
     for comp, g in x.groupby("comparison", sort=False):
         found, tests = int(g["crossover"].sum()), int(g["p"].notna().sum())
         if tests == 0:
-            parts.append(f"{SHORT.get(comp, comp)}, no test is possible (one episode per "
+            parts.append(f"{_phrase(comp)}, no test is possible (one episode per "
                          "cell has no spread to judge a sign by)")
             continue
         size = float(g["detectable"].median())
-        parts.append(f"{SHORT.get(comp, comp)}, {found} of {tests} (cell, controller pair) "
+        parts.append(f"{_phrase(comp)}, {found} of {tests} (cell, controller pair) "
                      f"tests find a mean-delay crossover, with 80% power only for one of "
                      f"±{size:.2g} s")
     total = int(x["crossover"].sum())

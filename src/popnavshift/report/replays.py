@@ -18,9 +18,8 @@ import pandas as pd
 
 from ..analysis.delay import episode_cells
 from ..analysis.study import Analysis
-from ..engine.folder import StudyFolder, stored_pedestrians
-from ..engine.rebuild import rebuild_run
 from ..errors import PopNavShiftError
+from ..read.folder import StudyFolder, stored_pedestrians
 from ..tables import NO_ROBOT, RUN_KEY
 from ..viz.replay import write_replay
 
@@ -115,8 +114,22 @@ def run_differences(stored_run: pd.Series, stored_peds: pd.DataFrame, result) ->
 
 
 def resimulate(key: dict[str, str], populations: pd.DataFrame, seed: int, *, record: bool = True):
-    """Simulate one stored run again from the episode id, the population table and the seed."""
+    """Simulate one stored run again from the episode id, the population table and the seed.
+    The simulator is imported here, not with the report: a finished folder is analysed and
+    reported without it (:func:`simulator_missing`)."""
+    from ..engine.rebuild import rebuild_run
+
     return rebuild_run(key, populations, seed, record=record)
+
+
+def simulator_missing() -> str | None:
+    """Why the replays cannot be re-simulated here (navground does not import), or None."""
+    try:
+        import navground.sim  # noqa: F401
+    except ImportError as exc:
+        return (f"the replays re-simulate runs, which needs navground ({exc}); the rest of "
+                "the report does not: install navground to add them")
+    return None
 
 
 def _row(df: pd.DataFrame, key: dict[str, str]) -> pd.DataFrame:
@@ -141,6 +154,10 @@ def write_replays(study: StudyFolder, a: Analysis, runs: pd.DataFrame,
         a.missing["replays"] = "the folder lacks populations.parquet or the study seed"
         return None
     cases = reversal_cases(a, runs, n) + delay_cases(a, n)
+    missing = simulator_missing() if cases else None
+    if missing:
+        a.missing["replays"] = missing
+        return None
     if not cases:
         a.missing["replays"] = "no reversal and no paired delay to illustrate"
         return None

@@ -1,27 +1,30 @@
 """The report's sections of the paper's results: an
 :class:`~popnavshift.analysis.study.Analysis` → findings, Table I, the noise floor,
-Table II, Fig. 2, Fig. 4, Kendall τ and the trade-off, each a list of blocks
-(:mod:`.blocks`), with the paper's figures (:mod:`popnavshift.analysis.paper_reference`)
-beside ours. The sections about the study itself are in :mod:`.study_sections`.
+Table II, Fig. 2, Fig. 4, Kendall τ and the trade-off, each declared once
+(:class:`.blocks.SectionSpec`) with a function of its content (a list of blocks), with the
+paper's figures (:mod:`popnavshift.analysis.paper_reference`) beside ours. The sections
+about the study itself are in :mod:`.study_sections`.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
 from ..analysis import METRICS
 from ..analysis import paper_reference as paper
-from ..analysis.study import CHANGE_METRICS, Analysis
+from ..analysis.reversals import COMPARISONS
+from ..analysis.study import CHANGE_METRICS
 from ..analysis.summary import controller_order
 from ..analysis.surviving import findings_list
 from ..analysis.verdicts import ABOVE
+from ..paper import CONTROLLERS
 from ..populations.build import population_order
 from ..populations.identity import MATCHED_PAIR
-from .blocks import Cell, Section, figure, fmt, para, pct, table
-from .figures import METRIC_LABELS, change_rows, controller_label, pop_label, tau_matrix
+from ..viz.style import controller_label
+from .blocks import Block, Cell, Page, SectionSpec, fmt, para, pct, table
+from .figures import METRIC_LABELS, change_rows, pop_label, tau_matrix
 
 OUTCOME_ROWS = (  # Table II rows: column of controller_outcomes, label, number format
     ("success_pct", "Success (%)", "{:.1f}"),
@@ -36,11 +39,12 @@ OUTCOME_ROWS = (  # Table II rows: column of controller_outcomes, label, number 
 )
 WORDS = {"success_pct": "success rate", "timeout_pct": "timeout rate", "mean_delay": "mean delay",
          "worst_decile": "worst-decile delay", "robot_time": "robot travel time",
-         "robot_orca": "Robot-ORCA", "early_yield": "early yielding"}
+         **{c.name: c.label for c in CONTROLLERS}}
 
 
 def words(text: str) -> str:
-    """A finding's statement with column names in words."""
+    """A finding's statement with column names in words and the paper's controllers by
+    their names (:data:`popnavshift.paper.CONTROLLERS`)."""
     for k, v in WORDS.items():
         text = text.replace(k, v)
     return text
@@ -65,37 +69,38 @@ def _finding_numbers(statement: str, numbers: dict[str, Any]) -> str:
     return "; ".join(f"{key(k)}: {one(v)}" for k, v in numbers.items())
 
 
-def summary_section(a: Analysis) -> Section:
-    s = Section("summary", "The paper's findings on this study: which hold, and which beyond noise",
-                missing="" if a.findings else a.missing.get("findings", "nothing to check"))
-    if not a.findings:
-        return s
+def _summary(p: Page, t: pd.DataFrame) -> list[Block]:
+    a = p.a
     held = sum(f.holds for f in a.findings)
-    judged = findings_list(a.tables["findings"], a.tables.get("evidence_findings"),
+    judged = findings_list(t, a.tables.get("evidence_findings"),
                            a.tables.get("evidence_burden")).set_index("statement")
     tested = judged[judged["judged_by"] != "point estimate only"]
-    s.blocks.append(para(f"{held} of the {len(a.findings)} qualitative findings of the paper "
-                         "(§V) that could be checked hold on this run's point estimates; "
-                         f"{int((tested['survives'] == True).sum())} of the {len(tested)} that "  # noqa: E712
-                         "can be judged beyond noise survive it (their 90% paired-bootstrap "
-                         "interval agrees, or, for the reversal findings, their excess over the "
-                         "null is above 0). Each line is computed from this study's tables; the "
-                         "numbers are ours."))
+    out = [para(f"{held} of the {len(a.findings)} qualitative findings of the paper "
+                "(§V) that could be checked hold on this run's point estimates; "
+                f"{int((tested['survives'] == True).sum())} of the {len(tested)} that "  # noqa: E712
+                "can be judged beyond noise survive it (their 90% paired-bootstrap "
+                "interval agrees, or, for the reversal findings, their excess over the "
+                "null is above 0). Each line is computed from this study's tables; the "
+                "numbers are ours.")]
     if a.cells is not None:
         n_cells, n_pops = a.cells["cell"].nunique(), a.cells["population"].nunique()
         if n_cells < paper.N_CELLS or n_pops < paper.N_POPULATIONS:
-            s.blocks.append(para(
+            out.append(para(
                 f"This run covers {n_cells} cells and {n_pops} population"
                 f"{'' if n_pops == 1 else 's'} (the paper: "
                 f"{paper.N_CELLS} and {paper.N_POPULATIONS}). With so few cells the intervals are "
                 "wide and findings can flip with more data.", "note"))
     if a.missing.get("findings"):
-        s.blocks.append(para(a.missing["findings"].capitalize() + ".", "note"))
-    s.blocks.append({"kind": "findings", "entries": [
+        out.append(para(a.missing["findings"].capitalize() + ".", "note"))
+    out.append({"kind": "findings", "entries": [
         {"holds": f.holds, "statement": words(f.statement)[:1].upper() + words(f.statement)[1:],
          "numbers": _finding_numbers(f.statement, f.numbers),
          "beyond": _beyond(judged.loc[f.statement])} for f in a.findings]})
-    return s
+    return out
+
+
+SUMMARY = SectionSpec("summary", "The paper's findings on this study: which hold, and which "
+                      "beyond noise", _summary, needs=("findings",), otherwise="nothing to check")
 
 
 def _beyond(j: pd.Series) -> str:
@@ -115,19 +120,12 @@ def _rate_row(t: pd.DataFrame, metric: str, scopes: tuple[str, ...]) -> list[Any
     return row
 
 
-def reversals_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
-    s = Section("table1", "Ranking reversals across populations (paper Table I, §V-A)",
-                missing=a.missing.get("reversals", ""))
-    t = a.tables.get("reversals")
-    if t is None:
-        return s
-    s.blocks.append(para("Share of comparable controller comparisons (non-tied under both "
-                         "populations) whose order flips, pooled over cells and controller pairs; "
-                         "95% cluster-bootstrap intervals resample cells. Completed cells: every "
-                         "controller succeeded on every variant under both populations."))
+def _reversals(p: Page, t: pd.DataFrame) -> list[Block]:
+    a = p.a
+    out = []
     note = descriptive_note(a.tables.get("evidence_headline"), a.tables.get("evidence_power"))
     if note:
-        s.blocks.append(para(note, "warn"))
+        out.append(para(note, "warn"))
     cols = ["Metric"] + ["Ours", "95% CI", "Reversals / comparable", "Paper"] * 2
     groups = [("", 1), ("All cells", 4), ("Completed cells", 4)]
     pops = a.cells["population"].nunique() if a.cells is not None else 0
@@ -139,15 +137,24 @@ def reversals_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
                          + " vs ".join(MATCHED_PAIR) + ", same personas)")):
         sel = t[t["comparison"] == comp]
         if sel.empty:
-            s.blocks.append(para(f"{title}: {a.missing.get('matched', 'not available')}.", "note"))
+            lacks = (f"the study lacks the matched pair ({', '.join(MATCHED_PAIR)})"
+                     if comp == "matched" else "not available")
+            out.append(para(f"{title}: {lacks}.", "note"))
             continue
         rows = [_rate_row(sel, m, ("all", "completed")) for m in METRICS]
-        s.blocks.append(table(cols, rows, caption=f"{title} — {design}", csv="reversals",
-                              groups=groups))
-    if "reversal_rates" in figs:
-        s.blocks.append(figure(figs["reversal_rates"], out, "Reversal rates with 95% intervals; "
-                               "black diamonds: the paper's values."))
-    return s
+        out.append(table(cols, rows, caption=f"{title} — {design}", csv="reversals",
+                         groups=groups))
+    return out + p.figure("reversal_rates", "Reversal rates with 95% intervals; black "
+                          "diamonds: the paper's values.")
+
+
+REVERSALS = SectionSpec(
+    "table1", "Ranking reversals across populations (paper Table I, §V-A)", _reversals,
+    needs=("reversals",),
+    intro="Share of comparable controller comparisons (non-tied under both populations) "
+          "whose order flips, pooled over cells and controller pairs; 95% cluster-bootstrap "
+          "intervals resample cells. Completed cells: every controller succeeded on every "
+          "variant under both populations.")
 
 
 def descriptive_note(head: pd.DataFrame | None, power: pd.DataFrame | None) -> str:
@@ -159,23 +166,14 @@ def descriptive_note(head: pd.DataFrame | None, power: pd.DataFrame | None) -> s
               if not (g["verdict"] == ABOVE).any()]
     if not within:
         return ""
-    words = {"matched": "the matched intervention", "all_pairs": "the population pairs"}
-    which = " and ".join(words.get(c, c) for c in within)
+    which = " and ".join(COMPARISONS[c].noun if c in COMPARISONS else c for c in within)
     return (f"Descriptive: for {which}, no raw rate below is above its null at the same design "
             "(see 'The answer'): these rates reproduce the paper's statistic, and most of "
             "them are what noise alone produces.")
 
 
-def noise_section(a: Analysis) -> Section:
-    s = Section("noise", "Noise floor: reversals between two random halves of one population",
-                missing=a.missing.get("noise_floor", ""))
-    t = a.tables.get("noise_floor")
-    if t is None:
-        return s
-    s.blocks.append(para("What sampling noise alone produces: the same population split at "
-                         "random into two halves, compared like two populations. Rates between "
-                         "real populations (Table I) mean little unless they exceed this floor."))
-    pairs = a.tables.get("reversals", pd.DataFrame(columns=["comparison", "cells", "metric"]))
+def _noise(p: Page, t: pd.DataFrame) -> list[Block]:
+    pairs = p.a.tables.get("reversals", pd.DataFrame(columns=["comparison", "cells", "metric"]))
     pairs = pairs[pairs["comparison"] == "all_pairs"].set_index(["cells", "metric"])["rate"]
     order = {m: i for i, m in enumerate(METRICS)}
     t = t.sort_values(["population", "cells", "metric"], key=lambda c: c.map(order)
@@ -183,18 +181,19 @@ def noise_section(a: Analysis) -> Section:
     rows = [[pop_label(r.population), r.cells, METRIC_LABELS[r.metric],
              f"{r.reversals}/{r.comparisons}", Cell(pct(r.rate), "strong"),
              pct(pairs.get((r.cells, r.metric)))] for r in t.itertuples(index=False)]
-    s.blocks.append(table(["Split population", "Cells", "Metric", "Reversals / comparable",
-                           "Noise floor", "All population pairs"], rows,
-                          csv="noise_floor"))
-    return s
+    return [table(["Split population", "Cells", "Metric", "Reversals / comparable",
+                   "Noise floor", "All population pairs"], rows, csv="noise_floor")]
 
 
-def outcomes_section(a: Analysis) -> Section:
-    s = Section("table2", "Controller outcomes (paper Table II, §V-C)",
-                missing=a.missing.get("controller_outcomes", ""))
-    t = a.tables.get("controller_outcomes")
-    if t is None:
-        return s
+NOISE = SectionSpec(
+    "noise", "Noise floor: reversals between two random halves of one population", _noise,
+    needs=("noise_floor",),
+    intro="What sampling noise alone produces: the same population split at random into two "
+          "halves, compared like two populations. Rates between real populations (Table I) "
+          "mean little unless they exceed this floor.")
+
+
+def _outcomes(p: Page, t: pd.DataFrame) -> list[Block]:
     t = t.set_index("controller")
     ctrls = controller_order(t.index)
     theirs = paper.CONTROLLER_OUTCOMES
@@ -205,23 +204,19 @@ def outcomes_section(a: Analysis) -> Section:
         Cell(fmt(theirs.get(c, {}).get(col), pattern), "paper"))] for col, label, pattern in
         OUTCOME_ROWS if col in t.columns]
     rows.append(["Robot runs"] + [x for c in ctrls for x in (int(t.at[c, "n_runs"]), "")])
-    s.blocks.append(table(cols, rows, csv="controller_outcomes", groups=groups))
-    s.blocks.append(para("Delays are the mean over (cell, population) rows of each cell's "
-                         "statistic; robot time counts 45 s for failed runs."))
-    return s
+    return [table(cols, rows, csv="controller_outcomes", groups=groups),
+            para("Delays are the mean over (cell, population) rows of each cell's "
+                 "statistic; robot time counts 45 s for failed runs.")]
 
 
-def change_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
-    s = Section("change", "Change in pedestrian delay under population shift (paper Fig. 2)",
-                missing=a.missing.get("delay_change", ""))
-    t = a.tables.get("delay_change")
-    if t is None:
-        return s
-    if "fig2_delay_change" in figs:
-        s.blocks.append(figure(figs["fig2_delay_change"], out, "Shifted minus reference delay "
-                               "over the same cells; outlined: the matched deadline intervention "
-                               "(same personas); the other rows are compared with the "
-                               "homogeneous population."))
+OUTCOMES = SectionSpec("table2", "Controller outcomes (paper Table II, §V-C)", _outcomes,
+                       needs=("controller_outcomes",))
+
+
+def _change(p: Page, t: pd.DataFrame) -> list[Block]:
+    out = p.figure("fig2_delay_change", "Shifted minus reference delay over the same cells; "
+                   "outlined: the matched deadline intervention (same personas); the other "
+                   "rows are compared with the homogeneous population.")
     ctrls = controller_order(t["controller"].unique())
     wide = t.pivot_table(index=["population", "reference"], columns=["metric", "controller"],
                          values="change")
@@ -230,26 +225,23 @@ def change_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
                           for m in CHANGE_METRICS]
     order = change_rows(wide.index.get_level_values("population"))[0]
     refs = dict(wide.index.tolist())
-    rows = [[f"{pop_label(p)} − {pop_label(refs[p])}"] + [
-        fmt(wide.loc[(p, refs[p])].get((m, c)), "{:+.2f}") for m in CHANGE_METRICS
-        for c in ctrls] for p in order]
-    s.blocks.append(table(cols, rows, csv="delay_change", groups=groups))
+    rows = [[f"{pop_label(q)} − {pop_label(refs[q])}"] + [
+        fmt(wide.loc[(q, refs[q])].get((m, c)), "{:+.2f}") for m in CHANGE_METRICS
+        for c in ctrls] for q in order]
     sign = paper.MATCHED_CHANGE_SIGN
-    s.blocks.append(para("The paper's matched row: lower delay under " + ", ".join(
-        controller_label(c) for c, v in sign.items() if v < 0) + "; higher under " + ", ".join(
-        controller_label(c) for c, v in sign.items() if v > 0) + "."))
-    return s
+    return out + [table(cols, rows, csv="delay_change", groups=groups), para(
+        "The paper's matched row: lower delay under " + ", ".join(
+            controller_label(c) for c, v in sign.items() if v < 0) + "; higher under "
+        + ", ".join(controller_label(c) for c, v in sign.items() if v > 0) + ".")]
 
 
-def sensitivity_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
-    s = Section("sensitivity", "Population sensitivity vs available width (paper Fig. 4)",
-                missing=a.missing.get("sensitivity_by_width", ""))
-    t = a.tables.get("sensitivity_by_width")
-    if t is None:
-        return s
-    if "fig4_width_sensitivity" in figs:
-        s.blocks.append(figure(figs["fig4_width_sensitivity"], out, "Range of mean delay across "
-                               "populations for a fixed controller and cell, averaged per width."))
+CHANGE = SectionSpec("change", "Change in pedestrian delay under population shift (paper Fig. 2)",
+                     _change, needs=("delay_change",))
+
+
+def _sensitivity(p: Page, t: pd.DataFrame) -> list[Block]:
+    out = p.figure("fig4_width_sensitivity", "Range of mean delay across populations for a "
+                   "fixed controller and cell, averaged per width.")
     views = [("sidewalk+bottleneck", "all", "pooled", "Both scenes"),
              ("sidewalk+bottleneck", "completed", "pooled", "Both scenes, completed cells"),
              ("sidewalk", "all", "pooled", "Sidewalks"), ("bottleneck", "all", "pooled",
@@ -266,46 +258,43 @@ def sensitivity_section(a: Analysis, figs: dict[str, Path], out: Path) -> Sectio
         row.append(Cell(fmt(paper.WIDTH_SENSITIVITY.get(float(w))), "paper"))
         rows.append(row)
     cols = ["Width (m)"] + [f"{v[3]} (s)" for v in views] + ["Paper, pooled (s)"]
-    s.blocks.append(table(cols, rows, csv="sensitivity_by_width"))
-    return s
+    return out + [table(cols, rows, csv="sensitivity_by_width")]
 
 
-def tau_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
-    s = Section("tau", "Kendall τ between population rankings",
-                missing=a.missing.get("kendall_tau", ""))
-    t = a.tables.get("kendall_tau")
-    if t is None:
-        return s
-    s.blocks.append(para("Kendall τ-b between the controller rankings of two populations in a "
-                         "cell (ties within the metric's tolerance), averaged over cells: 1 = "
-                         "same order everywhere, −1 = always reversed."))
-    if "kendall_tau" in figs:
-        s.blocks.append(figure(figs["kendall_tau"], out, "Mean Kendall τ-b per population pair."))
+SENSITIVITY = SectionSpec("sensitivity", "Population sensitivity vs available width (paper "
+                          "Fig. 4)", _sensitivity, needs=("sensitivity_by_width",))
+
+
+def _tau(p: Page, t: pd.DataFrame) -> list[Block]:
+    out = p.figure("kendall_tau", "Mean Kendall τ-b per population pair.")
     mats = {m: tau_matrix(t, m) for m in METRICS if (t["metric"] == m).any()}
     pops = list(next(iter(mats.values())).index)
     pairs = [(x, y) for i, x in enumerate(pops) for y in pops[i + 1:]]
     rows = [[f"{pop_label(x)} vs {pop_label(y)}"] + [fmt(m.loc[x, y]) for m in mats.values()]
             for x, y in pairs]
-    s.blocks.append(table(["Population pair"] + [METRIC_LABELS[m] for m in mats], rows,
-                          csv="kendall_tau", collapsed=True))
-    return s
+    return out + [table(["Population pair"] + [METRIC_LABELS[m] for m in mats], rows,
+                        csv="kendall_tau", collapsed=True)]
 
 
-def tradeoff_section(a: Analysis, figs: dict[str, Path], out: Path) -> Section:
-    s = Section("tradeoff", "Robot time vs pedestrian burden, per population",
-                missing=a.missing.get("tradeoff", ""))
-    t = a.tables.get("tradeoff")
-    if t is None:
-        return s
-    if "tradeoff" in figs:
-        s.blocks.append(figure(figs["tradeoff"], out, "Per population and controller: robot "
-                               "travel time against mean (●) and worst-decile (▲) delay."))
-    rank = {p: i for i, p in enumerate(population_order(t["population"]))}
+TAU = SectionSpec(
+    "tau", "Kendall τ between population rankings", _tau, needs=("kendall_tau",),
+    intro="Kendall τ-b between the controller rankings of two populations in a cell (ties "
+          "within the metric's tolerance), averaged over cells: 1 = same order everywhere, "
+          "−1 = always reversed.")
+
+
+def _tradeoff(p: Page, t: pd.DataFrame) -> list[Block]:
+    out = p.figure("tradeoff", "Per population and controller: robot travel time against "
+                   "mean (●) and worst-decile (▲) delay.")
+    rank = {q: i for i, q in enumerate(population_order(t["population"]))}
     t = t.sort_values("population", key=lambda c: c.map(rank), kind="stable")
     rows = [[pop_label(r.population), controller_label(r.controller), fmt(r.robot_time),
              fmt(r.mean_delay), fmt(r.worst_decile), fmt(r.success_pct, "{:.1f}")]
             for r in t.itertuples(index=False)]
-    s.blocks.append(table(["Population", "Controller", "Robot time (s)", "Mean delay (s)",
-                           "Worst decile (s)", "Success (%)"], rows, csv="tradeoff",
-                          collapsed=True))
-    return s
+    return out + [table(["Population", "Controller", "Robot time (s)", "Mean delay (s)",
+                         "Worst decile (s)", "Success (%)"], rows, csv="tradeoff",
+                        collapsed=True)]
+
+
+TRADEOFF = SectionSpec("tradeoff", "Robot time vs pedestrian burden, per population",
+                       _tradeoff, needs=("tradeoff",))

@@ -42,17 +42,19 @@ def collect_responses(
     Returns ``(responses, invalid, stats)``: ``responses`` follows the
     ``responses`` table spec (one row per persona id, variant and sample); ``invalid``
     lists persona_id, variant, sample, error, raw for records that stayed invalid;
-    ``stats`` sums calls, cache hits and tokens and lists the models that answered
+    ``stats`` sums calls (and the seconds they took), cache hits and tokens and lists the
+    models that answered
     (``served_models``: what the server reports, e.g. a dated version of ``model``).
     """
     requests = probe_requests(personas, matched, samples)
     answers = respondent.answer_all(requests, progress=progress)
     rows, bad = [], []
     stats: dict[str, Any] = {"records": len(answers), "samples": samples, "calls": 0,
-                             "cached": 0, "tokens": {}}
+                             "cached": 0, "tokens": {}, "call_seconds": 0.0}
     details = served_details(respondent)
     for req, ans in zip(requests, answers, strict=True):
         stats["calls"] += ans.calls
+        stats["call_seconds"] += ans.seconds
         stats["cached"] += int(ans.cached)
         for k, v in ans.tokens.items():
             stats["tokens"][k] = stats["tokens"].get(k, 0) + v

@@ -39,6 +39,7 @@ class Answer:
     error: str | None = None
     raw: str | None = None
     calls: int = 0  # network calls made (0 on a cache hit or for offline respondents)
+    seconds: float = 0.0  # time those calls took, waits between retries excluded (s)
     attempts: int = 0  # content attempts (1 + re-asks)
     cached: bool = False
     tokens: dict[str, int] = field(default_factory=dict)  # summed over all attempts

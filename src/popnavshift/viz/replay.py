@@ -220,6 +220,7 @@ def _agent(
 def render_gif(traj: Mapping[str, Any], path: Path, title: str = "", stride: int = 2) -> Path:
     """An animated GIF via matplotlib + Pillow (written atomically)."""
     matplotlib.use("Agg")  # before pyplot is imported: no display here
+    matplotlib.rcParams["text.parse_math"] = False  # a label is data: "$" is no math
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle
 

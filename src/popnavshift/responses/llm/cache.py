@@ -32,9 +32,9 @@ from ..schema import parse_answer
 
 log = logging.getLogger(__name__)
 
-#: 2: responses.served_model; 3: responses.system_fingerprint, identities.details (older
-#: files are migrated on open)
-SCHEMA_VERSION = 3
+#: 2: responses.served_model; 3: responses.system_fingerprint, identities.details; 4: the
+#: fingerprints table (older files are migrated on open)
+SCHEMA_VERSION = 4
 
 _DDL = """
 CREATE TABLE IF NOT EXISTS responses (
@@ -71,6 +71,15 @@ CREATE TABLE IF NOT EXISTS identities (
     seen REAL NOT NULL,
     details TEXT,
     PRIMARY KEY (endpoint, model)
+);
+CREATE TABLE IF NOT EXISTS fingerprints (
+    endpoint TEXT NOT NULL,
+    model TEXT NOT NULL,
+    listed TEXT NOT NULL,
+    fingerprint TEXT NOT NULL,
+    answers TEXT NOT NULL,
+    seen REAL NOT NULL,
+    PRIMARY KEY (endpoint, model, listed, fingerprint)
 );
 """
 
@@ -132,7 +141,7 @@ class ResponseCache:
             self._db = sqlite3.connect(self.path, timeout=30.0, check_same_thread=False)
             self._db.execute("PRAGMA journal_mode=WAL")
             version = self._db.execute("PRAGMA user_version").fetchone()[0]
-            if version in (1, 2):
+            if version in (1, 2, 3):
                 self._migrate(version)
             elif version not in (0, SCHEMA_VERSION):
                 raise ConfigError(
@@ -147,9 +156,11 @@ class ResponseCache:
             raise ConfigError(f"cannot open response cache {self.path}: {exc}") from None
 
     def _migrate(self, version: int) -> None:
-        """Add the columns a version-1 or -2 file lacks (same tables otherwise)."""
+        """Add the columns a version-1 or -2 file lacks (a version-3 file lacks only the
+        fingerprints table, which the DDL creates)."""
         added = [("responses", "served_model")] if version == 1 else []
-        added += [("responses", "system_fingerprint"), ("identities", "details")]
+        added += [("responses", "system_fingerprint"), ("identities", "details")
+                  ] if version < 3 else []
         for table, column in added:
             exists = self._db.execute("SELECT name FROM sqlite_master WHERE name = ?",
                                       (table,)).fetchone()
@@ -242,6 +253,25 @@ class ResponseCache:
                              "seen, details) VALUES (?, ?, ?, ?, ?)",
                              (endpoint, model, identity, time.time(),
                               json.dumps(details or {}, sort_keys=True)))
+            self._db.commit()
+
+    def fingerprints(self, endpoint: str, model: str, listed: str) -> list[str]:
+        """The behavioural fingerprints seen for ``model`` at ``endpoint`` under the listed
+        identity ``listed`` (:mod:`.canaries`), the most recent first."""
+        with self._lock:
+            rows = self._db.execute(
+                "SELECT fingerprint FROM fingerprints WHERE endpoint = ? AND model = ? AND "
+                "listed = ? ORDER BY seen DESC", (endpoint, model, listed)).fetchall()
+        return [str(r[0]) for r in rows]
+
+    def remember_fingerprint(self, endpoint: str, model: str, listed: str, fingerprint: str,
+                             answers: tuple[str, ...]) -> None:
+        """Keep a behavioural fingerprint with the canary answers it digests."""
+        with self._lock:
+            self._db.execute("INSERT OR REPLACE INTO fingerprints (endpoint, model, listed, "
+                             "fingerprint, answers, seen) VALUES (?, ?, ?, ?, ?, ?)",
+                             (endpoint, model, listed, fingerprint, json.dumps(list(answers)),
+                              time.time()))
             self._db.commit()
 
     def failures(self, persona_id: str | None = None) -> list[dict[str, Any]]:

@@ -29,8 +29,8 @@ from ...errors import ConfigError
 from ...redact import redact
 from ..prompt import SYSTEM_PROMPT, build_prompt
 from ..schema import response_json_schema
-from .retries import FinalError, Reply, RetryableError, check_status
-from .settings import check_setting, env_key, is_http_url
+from .retries import Clock, FinalError, Reply, RetryableError, check_status
+from .settings import check_key_variable, check_setting, env_key, is_http_url, key_variable
 from .transport import REASK, LLMRespondent
 
 DEFAULT_BASE_URL = "https://generativelanguage.googleapis.com"
@@ -57,7 +57,7 @@ class GeminiRespondent(LLMRespondent):
         **settings: Any,
     ) -> None:
         super().__init__(model=model, **settings)
-        self.api_key_env = api_key_env
+        self.api_key_env = key_variable(api_key_env)  # "none": no key, as on the CLI
         self.base_url = base_url
 
     @property
@@ -67,15 +67,16 @@ class GeminiRespondent(LLMRespondent):
 
     def validate(self) -> None:
         super().validate()
-        check_setting(isinstance(self.api_key_env, str) and self.api_key_env != "",
-                      "api_key_env", "an environment variable name", self.api_key_env)
+        check_setting(self.api_key_env is not None, "api_key_env", "an environment "
+                      "variable name (Gemini needs a key)", self.api_key_env)
+        check_key_variable(self.api_key_env)
         check_setting(self.base_url is None or is_http_url(self.base_url), "base_url",
                       "None or an http(s) URL", self.base_url)
 
     def _api_key(self) -> str:
         if self.api_key_env == "GEMINI_API_KEY":
             return env_key("GEMINI_API_KEY", "GOOGLE_API_KEY")
-        return env_key(self.api_key_env)
+        return env_key(str(self.api_key_env))
 
     def _body(self, persona: Mapping[str, Any], reasks: Sequence[tuple[str, str]],
               max_tokens: int | None = None, sample: int = 0) -> dict:
@@ -100,7 +101,7 @@ class GeminiRespondent(LLMRespondent):
             "generationConfig": config,
         }
 
-    def _connect(self, key: str | None) -> _GeminiSession:
+    def _connect(self, key: str | None, clock: Clock = Clock()) -> _GeminiSession:
         try:
             from google import genai
             from google.genai import errors, types
@@ -118,17 +119,18 @@ class GeminiRespondent(LLMRespondent):
         def make_client() -> Any:
             return genai.Client(api_key=key, vertexai=False, http_options=options)
 
-        return _GeminiSession(make_client, self.model, self.timeout, errors, types)
+        return _GeminiSession(make_client, self.model, self.timeout, errors, types, clock)
 
 
 class _GeminiSession:
     """One SDK client per worker thread (the SDK does not promise thread safety)."""
 
     def __init__(self, make_client: Any, model: str, timeout: float, errors: Any,
-                 types: Any) -> None:
+                 types: Any, clock: Clock) -> None:
         self._make_client = make_client
         self.model = model
         self.timeout = timeout
+        self.clock = clock
         self._errors = errors
         self._types = types
         self._transient = _transient_errors()
@@ -144,10 +146,12 @@ class _GeminiSession:
                 self._clients.append(client)
         return client
 
-    def send(self, body: dict[str, Any]) -> Reply:
+    def send(self, body: dict[str, Any], timeout: float | None = None) -> Reply:
         types = self._types
         gen = body["generationConfig"]
+        wait = self.clock.bound(self.timeout if timeout is None else timeout)
         config = types.GenerateContentConfig(
+            http_options=types.HttpOptions(timeout=max(1, round(wait * 1000))),  # ms
             system_instruction=body["systemInstruction"]["parts"][0]["text"],
             temperature=gen.get("temperature"),
             seed=gen.get("seed"),
@@ -164,10 +168,10 @@ class _GeminiSession:
             _raise_api_error(exc)
         except self._transient as exc:
             if "Timeout" in type(exc).__name__:
-                raise RetryableError(f"timeout after {self.timeout:g} s") from None
+                raise RetryableError(f"timeout after {wait:g} s") from None
             raise RetryableError(f"connection error ({type(exc).__name__})") from None
         except ValueError:  # the SDK could not decode the reply body
-            raise RetryableError("malformed response body") from None
+            raise RetryableError("malformed response body", heard=True) from None
         return _reply(resp)
 
     def check_ready(self) -> None:

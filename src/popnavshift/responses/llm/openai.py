@@ -11,7 +11,10 @@ environment variable ``api_key_env`` and only ever placed in the
 from __future__ import annotations
 
 import contextlib
+import logging
+import time
 from collections.abc import Mapping, Sequence
+from functools import partial
 from typing import Any
 
 import httpx
@@ -19,12 +22,32 @@ import httpx
 from ...redact import redact
 from ..prompt import SYSTEM_PROMPT, build_prompt
 from ..schema import response_json_schema
-from .cache import Identity
-from .identity import entry_identity, listing_details, listing_entry, props_details
+from .cache import Identity, ResponseCache
+from .canaries import CANARY_PROMPTS, CANARY_TOKENS, behaviour
+from .identity import (
+    combine,
+    listing_details,
+    listing_entry,
+    model_identity,
+    portable,
+    props_details,
+)
 from .readiness import NotReady
-from .retries import Reply, RetryableError, check_status
-from .settings import check_setting, env_key, is_http_url
+from .retries import Clock, FinalError, Reply, RetryableError, check_status
+from .settings import (
+    check_extra_body,
+    check_key_variable,
+    check_setting,
+    env_key,
+    is_http_url,
+    key_variable,
+)
 from .transport import REASK, LLMRespondent
+
+log = logging.getLogger("popnavshift.responses.llm")
+#: longest wait (s) for the model list and ``/props``: cheap routes that a server which
+#: is up answers at once; a hanging one is named after this, not after ``timeout``
+LIST_TIMEOUT = 15.0
 
 
 class OpenAIRespondent(LLMRespondent):
@@ -50,8 +73,8 @@ class OpenAIRespondent(LLMRespondent):
     ) -> None:
         super().__init__(model=model, **settings)
         self.base_url = base_url
-        self.api_key_env = api_key_env
-        self.extra_body = dict(extra_body or {})
+        self.api_key_env = key_variable(api_key_env)  # "none" means no key, as on the CLI
+        self.extra_body = {} if extra_body is None else extra_body
 
     @property
     def endpoint(self) -> str:
@@ -61,17 +84,14 @@ class OpenAIRespondent(LLMRespondent):
         super().validate()
         check_setting(is_http_url(self.base_url), "base_url",
                       "an http(s) URL such as 'http://localhost:11434/v1'", self.base_url)
-        taken = sorted(set(self.extra_body) & OWN_FIELDS)
-        check_setting(not taken and all(isinstance(k, str) for k in self.extra_body),
-                      "extra_body", "a mapping of server-specific fields; "
-                      f"{', '.join(sorted(OWN_FIELDS))} are set by their own options",
-                      self.extra_body)
+        check_key_variable(self.api_key_env)
+        check_extra_body(self.extra_body)
 
     def describe(self) -> dict[str, Any]:
         return {**super().describe(), "extra_body": self.extra_body}
 
     def _api_key(self) -> str | None:
-        return env_key(self.api_key_env) if self.api_key_env else None
+        return env_key(str(self.api_key_env)) if self.api_key_env else None
 
     def _body(self, persona: Mapping[str, Any], reasks: Sequence[tuple[str, str]],
               max_tokens: int | None = None, sample: int = 0) -> dict:
@@ -101,42 +121,65 @@ class OpenAIRespondent(LLMRespondent):
             body["max_tokens"] = limit
         return {**body, **self.extra_body}
 
-    def _connect(self, key: str | None) -> _ChatSession:
+    def _connect(self, key: str | None, clock: Clock = Clock()) -> _ChatSession:
         return _ChatSession(self.endpoint, key, self.timeout, self.max_concurrency,
-                            self.base_url.rstrip("/") + "/models")
+                            self.base_url.rstrip("/") + "/models", clock)
 
-    def _ask_identity(self) -> Identity | None:
-        session = self._connect(self._api_key())
+    def _ask_identity(self, cache: ResponseCache | None, clock: Clock) -> Identity | None:
+        """The listed identity (:meth:`_ChatSession.identity`) and, with ``fingerprint``,
+        the answers to the canary prompts (:func:`.canaries.behaviour`), combined."""
+        session = self._connect(self._api_key(), clock)
         try:
-            return session.identity(self.model)
+            listed = session.identity(self.model)
+            found = (behaviour(partial(self._canaries, session), cache, self.endpoint,
+                               self.model, listed.key if listed else None,
+                               f"{self.name} {self.model} at {self.endpoint}")
+                     if self.fingerprint else None)
         finally:
             session.close()
+        return combine(listed, found)
 
-
-#: request fields the respondent sets from its own options (not through ``extra_body``)
-OWN_FIELDS = frozenset({"model", "messages", "response_format", "temperature", "seed",
-                        "max_tokens"})
+    def _canaries(self, session: _ChatSession) -> tuple[str, ...] | None:
+        """The served model's answers to :data:`CANARY_PROMPTS` (temperature 0, seed 0,
+        one at a time: no batching), or None at the first call that fails."""
+        answers = []
+        for prompt in CANARY_PROMPTS:
+            body = {"model": self.model, "messages": [{"role": "user", "content": prompt}],
+                    "temperature": 0, "seed": 0, "max_tokens": CANARY_TOKENS,
+                    **self.extra_body}
+            sent = time.monotonic()
+            try:
+                answers.append(session.send(body).text or "")
+            except (RetryableError, FinalError) as exc:
+                if isinstance(exc, RetryableError) and not exc.heard:
+                    self._silent_since = sent  # a hang: the run's clock starts here
+                log.info("%s: canary prompt not answered (%s): no behavioural fingerprint "
+                         "this run", self.name, exc.reason)
+                return None
+        return tuple(answers)
 
 
 class _ChatSession:
     """One pooled httpx client shared by the worker threads (httpx.Client is thread-safe)."""
 
     def __init__(self, url: str, key: str | None, timeout: float, connections: int,
-                 models_url: str) -> None:
+                 models_url: str, clock: Clock) -> None:
         self.url = url
         self.models_url = models_url
         self.timeout = timeout
+        self.clock = clock
         headers = {"Authorization": f"Bearer {key}"} if key else {}
         self._client = httpx.Client(
             headers=headers, timeout=httpx.Timeout(timeout),
             limits=httpx.Limits(max_connections=connections),
         )
 
-    def send(self, body: dict[str, Any]) -> Reply:
+    def send(self, body: dict[str, Any], timeout: float | None = None) -> Reply:
+        wait = self.clock.bound(self.timeout if timeout is None else timeout)
         try:
-            resp = self._client.post(self.url, json=body)
+            resp = self._client.post(self.url, json=body, timeout=httpx.Timeout(wait))
         except httpx.TimeoutException:
-            raise RetryableError(f"timeout after {self.timeout:g} s") from None
+            raise RetryableError(f"timeout after {wait:g} s") from None
         except httpx.TransportError as exc:
             raise RetryableError(f"connection error ({type(exc).__name__})") from None
         check_status(resp.status_code, resp.headers.get("retry-after"), _error_message(resp))
@@ -146,10 +189,10 @@ class _ChatSession:
             message = choice["message"]
             usage = data.get("usage") or {}
         except (ValueError, KeyError, IndexError, TypeError):
-            raise RetryableError("malformed response body") from None
+            raise RetryableError("malformed response body", heard=True) from None
         finish = choice.get("finish_reason")
         note = None if finish in (None, "stop") else f"finish_reason={finish}"
-        served = data.get("model") if isinstance(data.get("model"), str) else None
+        served = portable(data["model"]) if isinstance(data.get("model"), str) else None
         fingerprint = data.get("system_fingerprint")
         if message.get("refusal"):
             note = f"refusal: {message['refusal']}"
@@ -166,10 +209,11 @@ class _ChatSession:
         """``GET url``: the reply, or None from a server without that route (404, 405,
         501); raises NotReady when the server does not answer or refuses (fatal: 401/403,
         worded as the authentication problem it is)."""
+        wait = self.clock.bound(min(self.timeout, LIST_TIMEOUT))
         try:
-            resp = self._client.get(url)
+            resp = self._client.get(url, timeout=httpx.Timeout(wait))
         except httpx.TimeoutException:
-            raise NotReady(f"no reply within {self.timeout:g} s") from None
+            raise NotReady(f"no reply within {wait:g} s") from None
         except httpx.TransportError as exc:
             raise NotReady(f"connection error ({type(exc).__name__})") from None
         if resp.status_code in (404, 405, 501):
@@ -191,10 +235,11 @@ class _ChatSession:
         self._models()
 
     def identity(self, model: str) -> Identity | None:
-        """:func:`listing_identity` of ``GET {base_url}/models`` (None without that route
-        or a listing) with what the server says of the model: a llama.cpp entry's size
-        and parameters, and its ``GET /props`` (asked of llama.cpp only: an entry with
-        ``meta``); raises NotReady when the server does not answer (fatal: 401/403)."""
+        """:func:`.identity.model_identity` of ``GET {base_url}/models`` (None without that
+        route or a listing) with what the server says of the model: a llama.cpp entry's
+        size, parameters and quantisation, and its ``GET /props`` (asked of llama.cpp only:
+        an entry with ``meta``); raises NotReady when the server does not answer (fatal:
+        401/403)."""
         resp = self._models()
         try:
             listing = resp.json() if resp is not None else None
@@ -209,7 +254,7 @@ class _ChatSession:
                               + "/props")
             with contextlib.suppress(ValueError):  # an unreadable /props tells nothing
                 details.update(props_details(props.json() if props is not None else None))
-        return Identity(entry_identity(entry), details)
+        return Identity(model_identity(entry, details), details)
 
     def close(self) -> None:
         self._client.close()

@@ -100,6 +100,11 @@ class Breaker:
     tripped: str | None = None  # why, once tripped
     lock: threading.Lock = field(default_factory=threading.Lock)
 
+    def trip(self, why: str) -> None:
+        """Trip now (a server that answers nothing at all: no record will do better)."""
+        with self.lock:
+            self.tripped = self.tripped or why
+
     def record(self, failure: str | None) -> None:
         """Count one finished record: ``failure`` is its transport error, None if the
         server replied."""

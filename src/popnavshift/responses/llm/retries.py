@@ -34,12 +34,16 @@ RETRY_STATUSES = frozenset({408, 429, 500, 502, 503, 504})
 FATAL_STATUSES = frozenset({401, 403, 404})
 
 class RetryableError(Exception):
-    """Raised by a session for a failure worth retrying (``reason`` is one line)."""
+    """Raised by a session for a failure worth retrying (``reason`` is one line);
+    ``heard``: the server replied (an HTTP status, a body), as against a timeout or a
+    connection error."""
 
-    def __init__(self, reason: str, retry_after: float | None = None) -> None:
+    def __init__(self, reason: str, retry_after: float | None = None, *,
+                 heard: bool = False) -> None:
         super().__init__(reason)
         self.reason = reason
         self.retry_after = retry_after
+        self.heard = heard
 
 
 class FinalError(Exception):
@@ -54,8 +58,9 @@ class FinalError(Exception):
 class TransportFailure(TransportError):
     """The transport gave up on one request after ``calls`` network calls."""
 
-    def __init__(self, message: str, *, calls: int, fatal: bool = False) -> None:
-        super().__init__(redact(message))  # servers echo credentials in error bodies
+    def __init__(self, message: str, *, calls: int, fatal: bool = False,
+                 hint: str | None = None) -> None:
+        super().__init__(redact(message), hint=hint)  # servers echo credentials in bodies
         self.calls = calls
         self.fatal = fatal
 
@@ -73,7 +78,8 @@ class Reply:
 
 
 class Session(Protocol):
-    def send(self, body: dict[str, Any]) -> Reply: ...
+    def send(self, body: dict[str, Any], timeout: float | None = None) -> Reply:
+        """One exchange; ``timeout`` (s) shortens the session's own (a stage deadline)."""
 
     def check_ready(self) -> None:
         """Return when the server answers; raise :class:`~.readiness.NotReady` otherwise."""
@@ -86,7 +92,7 @@ def check_status(status: int, retry_after: str | None, message: str) -> None:
     if status < 400:
         return
     if status in RETRY_STATUSES or status >= 500:
-        raise RetryableError(f"HTTP {status}", parse_retry_after(retry_after))
+        raise RetryableError(f"HTTP {status}", parse_retry_after(retry_after), heard=True)
     raise FinalError(f"HTTP {status}: {message}", fatal=status in FATAL_STATUSES)
 
 
@@ -106,21 +112,51 @@ def parse_retry_after(value: str | None) -> float | None:
 
 
 @dataclass(frozen=True)
+class Clock:
+    """A stage's deadline on the monotonic clock (``end`` None: none)."""
+
+    end: float | None = None
+    seconds: float | None = None  # the deadline as given, for messages
+
+    @classmethod
+    def after(cls, seconds: float | None) -> Clock:
+        return cls(None if seconds is None else time.monotonic() + seconds, seconds)
+
+    def left(self) -> float:
+        """Seconds left (inf without a deadline; ≤ 0 once it passed)."""
+        return math.inf if self.end is None else self.end - time.monotonic()
+
+    def bound(self, seconds: float) -> float:
+        """``seconds`` cut to what is left (at least a millisecond: a call needs one)."""
+        return max(1e-3, min(seconds, self.left()))
+
+    @property
+    def passed(self) -> bool:
+        return self.left() <= 0
+
+
+class DeadlineReached(TransportError):
+    """The stage's deadline (``--deadline``) passed: no call is started after it."""
+
+
+@dataclass(frozen=True)
 class RetryPolicy:
-    """Bounded exponential backoff; times in s. ``deadline`` bounds one request's calls
-    and waits together (None: only ``max_retries`` does)."""
+    """Bounded exponential backoff; times in s. A ``Retry-After`` longer than
+    ``max_retry_after`` stops the run (every record would wait as long)."""
 
     max_retries: int = 5
     backoff_base: float = 0.5
     backoff_cap: float = 30.0
     max_retry_after: float = MAX_RETRY_AFTER
-    deadline: float | None = None
 
     def delay(self, retry: int, retry_after: float | None = None) -> float:
         """Wait before retry number ``retry`` (1-based); ``Retry-After`` wins when given."""
         if retry_after is not None:
             return min(retry_after, self.max_retry_after)
         return min(self.backoff_cap, self.backoff_base * 2 ** (retry - 1))
+
+    def too_long(self, retry_after: float | None) -> bool:
+        return retry_after is not None and retry_after > self.max_retry_after
 
 
 class RateLimiter:
@@ -143,30 +179,41 @@ class RateLimiter:
 
 
 def send_with_retries(
-    send: Callable[[], Reply], policy: RetryPolicy, limiter: RateLimiter,
-    stopped: Callable[[], bool] = lambda: False,
+    send: Callable[[float | None], Reply], policy: RetryPolicy, limiter: RateLimiter,
+    clock: Clock = Clock(), stopped: Callable[[], bool] = lambda: False,
     on_retry: Callable[[], None] = lambda: None,
 ) -> tuple[Reply, int]:
-    """``(reply, calls)``; raises :class:`TransportFailure` once retries are spent, or
-    before a retry once ``stopped()`` (the run is being stopped). ``on_retry()`` is
-    called before each retry (the progress lines count them as they happen)."""
+    """``(reply, calls)``; ``send(timeout)`` makes one call, ``timeout`` the time left
+    before ``clock``'s deadline (None: no deadline). Raises :class:`TransportFailure`
+    once retries are spent, before a retry once ``stopped()`` (the run is being stopped),
+    at once (fatal) when the server asks to wait longer than ``max_retry_after``, and
+    :class:`DeadlineReached` once the deadline passed. ``on_retry()`` is called before
+    each retry (the progress lines count them as they happen)."""
     calls = 0
-    started = time.monotonic()
+    exc_reason = ""
     while True:
         limiter.wait()
+        if clock.passed:
+            raise DeadlineReached("before a call" + (f" (after {exc_reason})" if calls else ""))
         calls += 1
         sent = time.monotonic()
         try:
-            return send(), calls
+            return send(clock.bound(math.inf) if clock.end is not None else None), calls
         except RetryableError as exc:
+            exc_reason = exc.reason
+            if policy.too_long(exc.retry_after):
+                raise TransportFailure(
+                    f"{exc.reason}: the server asks to wait {exc.retry_after:.0f} s "
+                    f"(Retry-After), more than max_retry_after {policy.max_retry_after:g} s",
+                    calls=calls, fatal=True, hint="try later, or allow the wait with "
+                    "--max-retry-after (the respondent option max_retry_after)") from None
             wait = policy.delay(calls, exc.retry_after)
-            spent = time.monotonic() - started
-            late = policy.deadline is not None and spent + wait > policy.deadline
-            if calls > policy.max_retries or stopped() or late:
+            if calls > policy.max_retries or stopped():
                 why = (f"after {policy.max_retries} retries" if calls > policy.max_retries
-                       else "(run stopped)" if stopped()
-                       else f"(deadline of {policy.deadline:g} s reached after {spent:.0f} s)")
+                       else "(run stopped)")
                 raise TransportFailure(f"{exc.reason} {why}", calls=calls) from None
+            if clock.left() <= wait:
+                raise DeadlineReached(f"before a retry after {exc.reason}") from None
             took = time.monotonic() - sent
             slow = wait >= WAIT_NOTICE or took >= WAIT_NOTICE
             log.log(logging.WARNING if slow else logging.INFO, "%s; retry %d/%d in %.2f s%s",

@@ -19,31 +19,36 @@ Two loops, kept apart (SPEC §3):
 :class:`LLMRespondent` runs both for many records on a thread pool of
 ``max_concurrency`` workers behind a shared :class:`RateLimiter`, with the
 :class:`~.cache.ResponseCache` in front: a valid answer is stored under the hash
-of the record's *first* request (and of the served model's identity, when the server
-names it: one cheap call before the cache is read), so a second identical run makes no
-request.
+of the record's *first* request (and of the served model's identity: its listing and its
+answers to the canary prompts, a few cheap calls before the cache is read), so a second
+identical run asks no record again. The stage's ``deadline`` bounds all of it, calls in
+flight included (:class:`~.retries.Clock`), and a server that answers nothing for two
+request timeouts stops the run (:mod:`.run_state`).
 """
 
 from __future__ import annotations
 
 import logging
-import threading
+import time
 from abc import abstractmethod
 from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
-from dataclasses import dataclass, field, replace
+from concurrent.futures import TimeoutError as FuturesTimeout
+from dataclasses import replace
 from functools import partial
 from typing import Any
 
 from ...errors import ConfigError, RespondentError, TransportError
-from ...redact import redact
+from ...hashing import digest
 from ..probes import PROBE_SET_HASH
 from ..respondent import Answer, ProbeRequest, Progress, Respondent, sample_seed
 from ..schema import parse_answer
 from .cache import CacheStats, ResponseCache, request_key
-from .identity import Identity, served_identity
+from .identity import Identity, portable, served_identity
 from .readiness import Breaker, announced, wait_until_ready
 from .retries import (
+    Clock,
+    DeadlineReached,
     RateLimiter,
     RetryPolicy,
     Session,
@@ -51,40 +56,18 @@ from .retries import (
     add_tokens,
     send_with_retries,
 )
-from .settings import SETTING_NAMES, LLMSettings, check_setting, is_int, is_pos, with_settings
+from .run_state import Run, stop_error
+from .settings import SETTING_NAMES, LLMSettings, check_settings, with_settings
 
 log = logging.getLogger("popnavshift.responses.llm")
+
+#: seconds the stage waits past its deadline for the calls in flight (cut to end at it)
+DEADLINE_GRACE = 2.0
 
 REASK = (
     "Your previous reply was not valid: {error}. Reply again with only the JSON object "
     "matching the schema, with every encounter and every item."
 )
-
-
-@dataclass
-class _Run:
-    """State shared by the workers of one ``answer_all`` call."""
-
-    session: Session
-    cache: ResponseCache | None
-    limiter: RateLimiter
-    breaker: Breaker
-    fatal: TransportFailure | None = None
-    lock: threading.Lock = field(default_factory=threading.Lock)
-    counts: dict[str, int] = field(
-        default_factory=lambda: {"calls": 0, "retries": 0, "failed": 0})
-
-    def count(self, what: str, n: int = 1) -> None:
-        with self.lock:
-            self.counts[what] += n
-
-    def stopped(self) -> bool:
-        return self.fatal is not None or self.breaker.tripped is not None
-
-    @staticmethod
-    def redact(text: str) -> str:
-        # Defence in depth: servers sometimes echo credentials in error bodies.
-        return redact(text)
 
 
 class LLMRespondent(LLMSettings, Respondent):
@@ -105,8 +88,12 @@ class LLMRespondent(LLMSettings, Respondent):
         """``model`` and any of the :class:`~.settings.LLMSettings` (the rest keep their
         defaults, the class attributes)."""
         unknown = [k for k in settings if k not in SETTING_NAMES]
-        if unknown:
-            raise TypeError(f"unexpected keyword argument {unknown[0]!r}")
+        if unknown:  # the message a study file gets from the registry, for the Python API
+            raise ConfigError(f"{type(self).__name__}: unknown option {unknown[0]!r}"
+                              + (" (replicate was removed: ask independent samples with "
+                                 "samples=k, each sent with its own seed)"
+                                 if unknown[0] == "replicate" else ""),
+                              hint="accepted: " + ", ".join(SETTING_NAMES))
         self._model = model
         for name, value in settings.items():
             setattr(self, name, value)
@@ -116,6 +103,8 @@ class LLMRespondent(LLMSettings, Respondent):
         #: last answer_all, or last told (offline replay): the responses' identity columns
         self.served_details: dict[str, Any] = {}
         self._counts: dict[str, int] = {}  # the current run's calls, retries, failures
+        #: when a canary call went unanswered (monotonic s): the run's hang clock starts there
+        self._silent_since: float | None = None
 
     @property
     def model(self) -> str:
@@ -142,8 +131,9 @@ class LLMRespondent(LLMSettings, Respondent):
         return None if self.seed is None else sample_seed(self.seed, sample)
 
     @abstractmethod
-    def _connect(self, key: str | None) -> Session:
-        """Open a session (clients, connection pool) for one run."""
+    def _connect(self, key: str | None, clock: Clock = Clock()) -> Session:
+        """Open a session (clients, connection pool) for one run; no call outlasts
+        ``clock``'s deadline."""
 
     def describe(self) -> dict[str, Any]:
         return {
@@ -151,40 +141,19 @@ class LLMRespondent(LLMSettings, Respondent):
             "temperature": self.temperature, "seed": self.seed,
             "max_reasks": self.max_reasks, "max_tokens": self.max_tokens,
             "probe_set": PROBE_SET_HASH,
+            **({"model_sha256": self.model_sha256} if self.model_sha256 else {}),
         }
 
     def progress_note(self) -> str:
-        """The current run's network calls, transport retries and failed records so far,
-        for the progress lines."""
+        """The current run's requests in flight, network calls, transport retries and failed
+        records so far, for the progress lines."""
         c = self._counts
-        return (f"{c.get('calls', 0)} calls, {c.get('retries', 0)} retries, "
-                f"{c.get('failed', 0)} failed")
+        return (f"{c.get('in_flight', 0)} in flight, {c.get('calls', 0)} calls, "
+                f"{c.get('retries', 0)} retries, {c.get('failed', 0)} failed")
 
     def validate(self) -> None:
         """Raise ConfigError for a bad setting (``answer_all`` calls this first)."""
-        checks = [
-            ("model", isinstance(self.model, str) and self.model.strip() != "",
-             "a non-empty model name"),
-            ("max_concurrency", is_int(self.max_concurrency, 1), "an int ≥ 1"),
-            ("rate_limit", self.rate_limit is None or is_pos(self.rate_limit),
-             "None or calls/s > 0"),
-            ("timeout", is_pos(self.timeout), "seconds > 0"),
-            ("max_retries", is_int(self.max_retries, 0), "an int ≥ 0"),
-            ("max_reasks", is_int(self.max_reasks, 0), "an int ≥ 0"),
-            ("backoff_base", is_pos(self.backoff_base) or self.backoff_base == 0, "seconds ≥ 0"),
-            ("backoff_cap", is_pos(self.backoff_cap) or self.backoff_cap == 0, "seconds ≥ 0"),
-            ("max_tokens", self.max_tokens is None or is_int(self.max_tokens, 1),
-             "None or an int ≥ 1"),
-            ("ready_timeout", is_pos(self.ready_timeout) or self.ready_timeout == 0,
-             "seconds ≥ 0"),
-            ("max_consecutive_failures", is_int(self.max_consecutive_failures, 1),
-             "an int ≥ 1"),
-            ("max_retry_after", is_pos(self.max_retry_after) or self.max_retry_after == 0,
-             "seconds ≥ 0"),
-            ("deadline", self.deadline is None or is_pos(self.deadline), "None or seconds > 0"),
-        ]
-        for name, ok, expected in checks:
-            check_setting(ok, name, expected, getattr(self, name))
+        check_settings(self)
 
     def answer_all(
         self, requests: Sequence[ProbeRequest], progress: Progress | None = None
@@ -205,12 +174,14 @@ class LLMRespondent(LLMSettings, Respondent):
         tick = progress or (lambda n: None)
         answers: dict[int, Answer] = {}
         todo: dict[str, int] = {}  # request hash → the record that asks it
+        clock = Clock.after(self.deadline)
         cache = ResponseCache(self.cache_path) if self.cache_path is not None else None
         self.cache_stats = None
+        self._silent_since = None
         try:
-            with announced(f"{self.name} server {self.endpoint} (its model list)"):
-                self._served_identity, self.served_details = served_identity(
-                    self._ask_identity, cache, self.endpoint, self.model, self.name)
+            with announced(f"{self.name} server {self.endpoint} (its model list and "
+                           "canary prompts)"):
+                self._identify(cache, clock)
             keys = [self._key(self._body(r.persona, (), sample=r.sample), r.sample)
                     for r in requests]
             for i, (req, key) in enumerate(zip(requests, keys, strict=True)):
@@ -223,7 +194,7 @@ class LLMRespondent(LLMSettings, Respondent):
                     answers[i] = hit
                     tick(1)
             if todo:
-                self._ask_all(requests, keys, list(todo.values()), answers, cache, tick)
+                self._ask_all(requests, keys, list(todo.values()), answers, cache, tick, clock)
         finally:
             if cache is not None:
                 self.cache_stats = cache.stats
@@ -238,6 +209,19 @@ class LLMRespondent(LLMSettings, Respondent):
                  sum(a.calls for a in out))
         return out
 
+    def _identify(self, cache: ResponseCache | None, clock: Clock) -> None:
+        """Learn which model the server serves (:func:`.identity.served_identity`, with the
+        user's ``model_sha256``): the identity in every cache key, and the records'
+        identity columns."""
+        found = served_identity(partial(self._ask_identity, cache, clock), cache,
+                                self.endpoint, self.model, self.name)
+        details = dict(found.details) if found is not None else {}
+        key = found.key if found is not None else None
+        if self.model_sha256:
+            details["model_sha256"] = self.model_sha256.lower()
+            key = digest({"served": key, "sha256": self.model_sha256.lower()})
+        self._served_identity, self.served_details = key, details
+
     def _ask_all(
         self,
         requests: Sequence[ProbeRequest],
@@ -246,39 +230,53 @@ class LLMRespondent(LLMSettings, Respondent):
         answers: dict[int, Answer],
         cache: ResponseCache | None,
         tick: Progress,
+        clock: Clock,
     ) -> None:
         secret = self._api_key()  # MissingKeyError before any network call
-        run = _Run(self._connect(secret), cache, RateLimiter(self.rate_limit),
-                   Breaker(self.max_consecutive_failures))
+        run = Run(self._connect(secret, clock), cache, RateLimiter(self.rate_limit),
+                  Breaker(self.max_consecutive_failures), clock, self.timeout,
+                  self._silent_since or time.monotonic())
         self._counts = run.counts
         pool = ThreadPoolExecutor(self.max_concurrency, "popnavshift-llm")
         try:
-            wait_until_ready(run.session.check_ready, f"{self.name} server {self.endpoint}",
-                             self.ready_timeout)
-            futures = {pool.submit(self._ask, requests[i], keys[i], run): i for i in todo}
-            for fut in as_completed(futures):
-                answers[futures[fut]] = fut.result()
-                tick(1)
+            self._wait_ready(run)
+            futures = ({pool.submit(self._ask, requests[i], keys[i], run): i for i in todo}
+                       if run.deadline is None else {})
+            # calls in flight end at the deadline (their timeouts are cut to it): wait a
+            # moment beyond it, never for a call the server will not answer
+            wait = None if clock.end is None else max(clock.left(), 0.0) + DEADLINE_GRACE
+            try:
+                for fut in as_completed(futures, timeout=wait):
+                    answers[futures[fut]] = fut.result()
+                    tick(1)
+            except FuturesTimeout:
+                run.deadline = run.deadline or "calls still in flight at the deadline"
         finally:
             # A no-op after a normal finish; on Ctrl-C or a bug it drops the queued records.
             pool.shutdown(wait=False, cancel_futures=True)
             run.session.close()
-        if run.fatal is not None:
-            raise TransportError(
-                f"{self.name}: {run.fatal} from {self.endpoint}",
-                hint="check the API key, the model name and base_url",
-            )
-        if run.breaker.tripped is not None:
-            raise TransportError(
-                f"{self.name}: stopped: {run.breaker.tripped} at {self.endpoint}",
-                hint="check the server (-v shows every retry); --max-failures sets the "
-                "threshold",
-            )
+        error = stop_error(run, self.name, self.endpoint, answers, len(requests))
+        if error is not None:
+            raise error
+
+    def _wait_ready(self, run: Run) -> None:
+        """Wait for the server (:func:`.readiness.wait_until_ready`) within the stage's
+        deadline; a wait the deadline cut short stops the run as the deadline."""
+        if run.clock.passed:
+            run.deadline = "before the first record"
+            return
+        try:
+            wait_until_ready(run.session.check_ready, f"{self.name} server {self.endpoint}",
+                             min(self.ready_timeout, max(run.clock.left(), 0.0)))
+        except TransportError:
+            if not run.clock.passed:
+                raise
+            run.deadline = "waiting for the server to be ready"
 
     def _key(self, body: dict, sample: int) -> str:
         return request_key(self.endpoint, self.model, body, sample, self._served_identity)
 
-    def _ask_identity(self) -> Identity | None:
+    def _ask_identity(self, cache: ResponseCache | None, clock: Clock) -> Identity | None:
         """The identity of the model the server serves, asked before the cache is read;
         None when the server does not say; raises NotReady (or MissingKeyError) when it
         cannot be asked. This base names none."""
@@ -294,9 +292,9 @@ class LLMRespondent(LLMSettings, Respondent):
         # responses table does not depend on cache state; calls=0 says nothing was sent.
         return Answer(req.persona_id, req.variant, answer=hit.answer, raw=hit.raw, calls=0,
                       attempts=hit.attempts, cached=True, tokens=dict(hit.tokens),
-                      served_model=hit.served_model, fingerprint=hit.fingerprint)
+                      served_model=portable(hit.served_model), fingerprint=hit.fingerprint)
 
-    def _ask(self, req: ProbeRequest, key: str, run: _Run) -> Answer:
+    def _ask(self, req: ProbeRequest, key: str, run: Run) -> Answer:
         """One record: up to 1 + max_reasks content attempts, each with transport retries.
 
         A reply cut at the token limit is not re-asked with the same limit (it would be
@@ -304,19 +302,24 @@ class LLMRespondent(LLMSettings, Respondent):
         was set (the server's own), the record fails with a hint to set one."""
         ans = Answer(req.persona_id, req.variant, tokens={"prompt": 0, "completion": 0, "total": 0})
         policy = RetryPolicy(self.max_retries, self.backoff_base, self.backoff_cap,
-                             self.max_retry_after, self.deadline)
+                             self.max_retry_after)
         reasks: list[tuple[str, str]] = []
         limit = self.max_tokens
         for attempt in range(self.max_reasks + 1):
             if run.stopped():
-                ans.error = f"skipped: {run.fatal or run.breaker.tripped}"
+                ans.error = f"skipped: {run.fatal or run.breaker.tripped or run.deadline}"
                 return ans
             body = self._body(req.persona, reasks, limit, req.sample)
             ans.attempts = attempt + 1
             try:
-                reply, calls = send_with_retries(partial(run.session.send, body), policy,
-                                                 run.limiter, run.stopped,
-                                                 partial(run.count, "retries"))
+                send = partial(run.send, body, f"{self.name} server {self.endpoint}",
+                               ans)
+                reply, calls = send_with_retries(send, policy, run.limiter, run.clock,
+                                                 run.stopped, partial(run.count, "retries"))
+            except DeadlineReached as exc:
+                run.deadline = run.deadline or str(exc)
+                ans.error = f"not answered: {exc}"
+                return ans
             except TransportFailure as exc:
                 run.count("calls", exc.calls)
                 run.count("failed")
@@ -363,7 +366,7 @@ class LLMRespondent(LLMSettings, Respondent):
         ans.error = f"invalid after {ans.attempts} attempts: {last}"
         return ans
 
-    def _log_failure(self, run: _Run, req: ProbeRequest, body: dict, error: str,
+    def _log_failure(self, run: Run, req: ProbeRequest, body: dict, error: str,
                      raw: str | None) -> None:
         if run.cache is not None:
             run.cache.put_failure(self._key(body, req.sample), persona_id=req.persona_id,
@@ -372,5 +375,5 @@ class LLMRespondent(LLMSettings, Respondent):
 
 def _copy(asked: Answer, req: ProbeRequest) -> Answer:
     """The answer to an identical request, for another record of the same batch."""
-    return replace(asked, persona_id=req.persona_id, variant=req.variant, calls=0,
+    return replace(asked, persona_id=req.persona_id, variant=req.variant, calls=0, seconds=0.0,
                    cached=asked.answer is not None, tokens=dict(asked.tokens))

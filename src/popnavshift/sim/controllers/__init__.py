@@ -26,18 +26,33 @@ the way to use them in plain navground.
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
-import numpy as np
-from navground import core, sim
-
-# the robot every controller drives: declared in sim/constants.py, re-exported for plug-ins
-from ..constants import ROBOT_GOAL_TOLERANCE as ROBOT_GOAL_TOLERANCE
-from ..constants import ROBOT_RADIUS as ROBOT_RADIUS
-from ..constants import ROBOT_SENSING_RANGE as ROBOT_SENSING_RANGE
-from ..constants import WHEEL_AXIS as WHEEL_AXIS
 from . import builtin  # noqa: F401  (registers the built-in controllers)
 from .registry import CONTROLLERS
+
+if TYPE_CHECKING:
+    import numpy as np
+    from navground import core, sim
+
+    from ..constants import ROBOT_GOAL_TOLERANCE as ROBOT_GOAL_TOLERANCE
+    from ..constants import ROBOT_RADIUS as ROBOT_RADIUS
+    from ..constants import ROBOT_SENSING_RANGE as ROBOT_SENSING_RANGE
+    from ..constants import WHEEL_AXIS as WHEEL_AXIS
+
+#: the robot every controller drives: declared in sim/constants.py, re-exported for
+#: plug-ins, read from there on first use (sim/constants.py loads the episode grid: a
+#: command that only lists the controllers must not)
+_ROBOT = frozenset({"ROBOT_GOAL_TOLERANCE", "ROBOT_RADIUS", "ROBOT_SENSING_RANGE",
+                    "WHEEL_AXIS"})
+
+
+def __getattr__(name: str) -> Any:
+    if name in _ROBOT:
+        from .. import constants
+
+        return getattr(constants, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 class ControllerFactory(Protocol):

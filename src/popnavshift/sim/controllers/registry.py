@@ -1,4 +1,4 @@
-"""The controller registry: controller ids and the one ``make``.
+"""The controller registry: the one ``make`` of a controller id.
 
 A controller is named, in a study file or on the command line, by a registered
 name (the built-ins of :mod:`.builtin` and every navground behaviour type), an
@@ -8,53 +8,23 @@ subclass navground's ``core.Behavior`` (:class:`.navground_type.BehaviorClass`
 wraps it in the controller contract); a class that already implements that
 contract (``build``, ``after_placement``, ``describe``) is used as it is.
 
-Controller parameters are part of the controller's identity:
-``controller_id("HRVO", {"tau": 0.5})`` is ``'HRVO{"tau":0.5}'``, so two
-parameterisations never share a run and a runs table's ``controller`` column is
-enough to rebuild the controller (``CONTROLLERS.make`` parses it).
+Controller parameters are part of the controller's identity
+(:mod:`popnavshift.controller_ids`): a runs table's ``controller`` column is enough to
+rebuild the controller (``CONTROLLERS.make`` parses it).
 """
 
 from __future__ import annotations
 
-import json
-from collections.abc import Mapping
 from typing import Any
 
 from navground import core
 
+from ...controller_ids import controller_id, parse_controller_id
 from ...errors import ConfigError
-from ...hashing import canonical_json
 from ...registry import Registry, describe_object, has_methods, is_object_spec
 from .navground_type import BehaviorClass
 
 FACTORY_METHODS = ("build", "after_placement", "describe")
-
-
-def controller_id(name: str, params: Mapping[str, Any] | None = None) -> str:
-    """The controller column value: ``name``, or ``name`` + canonical JSON of ``params``."""
-    if not name or "{" in name:
-        raise ConfigError(f"controller name must be non-empty and without '{{', got {name!r}")
-    if not params:
-        return name
-    try:
-        json.dumps(dict(params), allow_nan=False)
-    except (TypeError, ValueError) as exc:
-        raise ConfigError(f"controller {name!r}: parameters must be JSON values: {exc}") from None
-    return name + canonical_json(dict(params))
-
-
-def parse_controller_id(identity: str) -> tuple[str, dict[str, Any]]:
-    """Inverse of :func:`controller_id`: ``'HRVO{"tau":0.5}'`` → ``("HRVO", {"tau": 0.5})``."""
-    name, brace, rest = identity.partition("{")
-    if not brace:
-        return identity, {}
-    try:
-        params = json.loads(brace + rest)
-    except json.JSONDecodeError:
-        params = None
-    if not name or not isinstance(params, dict):
-        raise ConfigError(f"controller {identity!r}: expected NAME or NAME{{JSON parameters}}")
-    return name, params
 
 
 class ControllerRegistry(Registry[Any]):
@@ -74,6 +44,14 @@ class ControllerRegistry(Registry[Any]):
                 f"controller {spec!r} is {describe_object(obj)}, not a navground Behavior",
                 hint="a controller class must subclass navground.core.Behavior, "
                      "or implement build, after_placement and describe")
+
+    def check_name(self, name: str) -> None:
+        """As :meth:`Registry.check_name`, for a controller id (``HRVO{"tau":0.5}`` is
+        checked by its name); a ``package.module:Class`` is checked when it is made
+        (importing it is the check)."""
+        base, _ = parse_controller_id(name)
+        if not is_object_spec(base):
+            super().check_name(base)
 
     def make(self, spec: str, **params: Any) -> Any:
         """A controller factory for a controller id (name, entry point or class spec,

@@ -1,17 +1,18 @@
 """A study folder on disk: its tables and manifest, and the runs of each study part.
 
-``read_study_folder`` reads what ``popnavshift run`` wrote, the stored study
-configuration parsed once into its :class:`~popnavshift.engine.study.Study`;
+``open_study`` opens what ``popnavshift run`` wrote, the stored study configuration
+parsed once into its :class:`~popnavshift.design.study.Study`, the tables read on first use;
 ``main_grid`` selects the study's main part (the paper's design, the part whose role is
-``main``), ``main_part`` names its populations, backends and mappings, and ``part_runs``
+``main``, :meth:`StudyFolder.main_part`), and ``part_runs``
 the runs of any part on one of its seed sets. Pure selection: the analysis of these runs
 lives in :mod:`popnavshift.analysis`, which finds parts by role, never by name.
 """
 
 from __future__ import annotations
 
+import functools
 import json
-from dataclasses import dataclass
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -20,26 +21,75 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from ..design.part import Part
+from ..design.plan import select_episodes
+from ..design.study import Study, study_from_dict
 from ..episodes.specs import seed_set_id
 from ..errors import InputError
 from ..populations.build import HALVES, population_order
 from ..populations.identity import PopulationSpec
 from ..tables import NO_ROBOT
-from .plan import select_episodes
-from .study import Study, study_from_dict
 
 
-@dataclass(frozen=True)
 class StudyFolder:
-    folder: Path
-    runs: pd.DataFrame
-    pedestrians: pd.DataFrame
-    populations: pd.DataFrame | None
-    episodes: pd.DataFrame | None
-    manifest: dict[str, Any]
-    metadata: dict[str, dict[str, Any]]  # personas.json, responses.json
-    #: the manifest's study configuration, parsed (None when it names no part)
-    study: Study | None = None
+    """A finished study folder, opened once (:func:`open_study`): its manifest and the
+    study configuration it stored, parsed into a :class:`Study` (``study``; None when it
+    names no part); its tables are read on first use, pedestrians with
+    :data:`ANALYSIS_PEDESTRIAN_COLUMNS` only (:func:`stored_pedestrians` reads one run's
+    full rows). Every reader of a folder — the analysis, the report, ``evaluate``, the
+    audit, ``popnavshift.load`` — goes through it, so the stored study is parsed in one
+    place and its main part is the one :meth:`Study.main_part` names."""
+
+    def __init__(self, folder: Path, manifest: dict[str, Any] | None = None,
+                 tables: Mapping[str, pd.DataFrame | None] | None = None) -> None:
+        self.folder = Path(folder)
+        self.manifest = (_read_json(self.folder / "manifest.json") if manifest is None
+                         else manifest)
+        #: the manifest's study configuration, parsed (None when it names no part)
+        self.study: Study | None = stored_study(self.manifest)
+        self._tables: dict[str, pd.DataFrame | None] = dict(tables or {})
+
+    def _table(self, name: str) -> pd.DataFrame | None:
+        if name not in self._tables:
+            path = self.folder / f"{name}.parquet"
+            if name in ("runs", "pedestrians") and not path.exists():
+                raise InputError(f"study folder {self.folder}: {name}.parquet not found",
+                                 hint="run the study first (popnavshift run)")
+            if not path.exists():
+                self._tables[name] = None
+            elif name == "pedestrians":
+                self._tables[name] = read_categorical(path, list(ANALYSIS_PEDESTRIAN_COLUMNS))
+            else:
+                self._tables[name] = pd.read_parquet(path)
+        return self._tables[name]
+
+    @property
+    def runs(self) -> pd.DataFrame:
+        """``runs.parquet`` (InputError when absent)."""
+        runs = self._table("runs")
+        assert runs is not None
+        return runs
+
+    @property
+    def pedestrians(self) -> pd.DataFrame:
+        """``pedestrians.parquet``, :data:`ANALYSIS_PEDESTRIAN_COLUMNS` only (InputError
+        when absent)."""
+        peds = self._table("pedestrians")
+        assert peds is not None
+        return peds
+
+    @property
+    def populations(self) -> pd.DataFrame | None:
+        return self._table("populations")
+
+    @property
+    def episodes(self) -> pd.DataFrame | None:
+        return self._table("episodes")
+
+    @functools.cached_property
+    def metadata(self) -> dict[str, dict[str, Any]]:
+        """``personas.json`` and ``responses.json``, by name."""
+        return {n: _read_json(self.folder / f"{n}.json") for n in ("personas", "responses")}
 
     @property
     def population_specs(self) -> dict[str, PopulationSpec]:
@@ -53,13 +103,28 @@ class StudyFolder:
         return self.study.seed if self.study is not None else self.manifest.get(
             "seeds", {}).get("study")
 
+    def main_part(self) -> tuple[str, Part] | None:
+        """The (name, part) of the study's main part (:meth:`Study.main_part`: declared or
+        named ``main``), None without one."""
+        return None if self.study is None else self.study.main_part()
 
-def _study(manifest: dict[str, Any]) -> Study | None:
+
+def open_study(folder: Path) -> StudyFolder:
+    """The study folder ``folder``, opened: its manifest read and its study parsed now,
+    its tables on first use. InputError when the folder does not exist or a JSON file
+    the run wrote is damaged."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(f"study folder {folder} not found",
+                         hint="give a folder written by `popnavshift run`")
+    return StudyFolder(folder)
+
+
+def stored_study(manifest: Mapping[str, Any]) -> Study | None:
     """The study the manifest stored, its parts in the study file's order (``part_order``;
-    the stored JSON's keys are sorted, and a study that names no main part takes its
-    first)."""
+    the stored JSON's keys are sorted): the one parse of a stored study configuration."""
     cfg = manifest.get("study_config")
-    if not (cfg and cfg.get("parts")):
+    if not (isinstance(cfg, dict) and cfg.get("parts")):
         return None
     order = [n for n in manifest.get("part_order", ()) if n in cfg["parts"]]
     parts = {n: cfg["parts"][n] for n in [*order, *sorted(set(cfg["parts"]) - set(order))]}
@@ -86,33 +151,6 @@ def _read_json(path: Path) -> dict[str, Any]:
 ANALYSIS_PEDESTRIAN_COLUMNS: tuple[str, ...] = (
     "part", "episode", "seed_set", "population", "controller", "backend", "mapping", "slot",
     "persona_id", "arrived", "travel_time", "walk_distance")
-
-
-def read_study_folder(folder: Path) -> StudyFolder:
-    """The tables of a study folder, pedestrians with ``ANALYSIS_PEDESTRIAN_COLUMNS`` only
-    (:func:`stored_pedestrians` reads one run's full rows); raises :class:`InputError`
-    without runs or pedestrians."""
-    folder = Path(folder)
-    manifest = _read_json(folder / "manifest.json")
-    for name in ("runs.parquet", "pedestrians.parquet"):
-        if not (folder / name).exists():
-            raise InputError(f"study folder {folder}: {name} not found",
-                             hint="run the study first (popnavshift run)")
-
-    def optional(name: str) -> pd.DataFrame | None:
-        return pd.read_parquet(folder / name) if (folder / name).exists() else None
-
-    return StudyFolder(
-        folder=folder,
-        runs=pd.read_parquet(folder / "runs.parquet"),
-        pedestrians=read_categorical(folder / "pedestrians.parquet",
-                                     list(ANALYSIS_PEDESTRIAN_COLUMNS)),
-        populations=optional("populations.parquet"),
-        episodes=optional("episodes.parquet"),
-        manifest=manifest,
-        metadata={n: _read_json(folder / f"{n}.json") for n in ("personas", "responses")},
-        study=_study(manifest),
-    )
 
 
 def read_categorical(path: Path, columns: list[str]) -> pd.DataFrame:
@@ -163,7 +201,7 @@ def split_halves(populations) -> list[tuple[str, str, str]]:
     """(population, half a, half b) for every pair of split halves (:data:`HALVES`) among
     ``populations``."""
     have = set(map(str, populations))
-    pairs = {(h.base, h.name, PopulationSpec.half(h.base, "b").name)
+    pairs = {(str(h.base), h.name, PopulationSpec.half(str(h.base), "b").name)
              for h in HALVES if h.arm == "a"}
     return sorted(p for p in pairs if {p[1], p[2]} <= have)
 
@@ -183,7 +221,7 @@ def main_grid(study: StudyFolder) -> tuple[pd.DataFrame, pd.DataFrame, str]:
     Without a configuration every run is kept.
     """
     runs, peds = study.runs, study.pedestrians
-    main = None if study.study is None else study.study.part_with("main")
+    main = study.main_part()
     if main is None or study.episodes is None:
         return runs, peds, "every run in the folder (the manifest names no study part)"
     name, part = main
@@ -203,15 +241,6 @@ def main_grid(study: StudyFolder) -> tuple[pd.DataFrame, pd.DataFrame, str]:
             f"{', '.join(part.controllers)} and no robot; backend {', '.join(part.backends)}; "
             f"mapping {', '.join(mappings)}")
     return runs, peds, text
-
-
-def main_part(study: StudyFolder) -> tuple[list[str], list[str], list[str]] | None:
-    """(populations, backends, mappings) of the study's main part."""
-    main = None if study.study is None else study.study.part_with("main")
-    if main is None:
-        return None
-    part = main[1]
-    return list(part.populations), list(part.backends), list(part.mappings)
 
 
 def part_runs(study: StudyFolder, name: str, seed: int | None = None

@@ -1,25 +1,25 @@
-"""Run plans: a study → work units (runs) grouped into batches.
+"""Run plans: a study → its runs, without the simulator.
 
-A run is identified by (episode, population, controller, backend, mapping);
+A run is keyed by (episode, population, controller, backend, mapping);
 ``controller == "none"`` is the no-robot baseline. Parts may overlap (the
 ``matched`` part is inside ``main``); a run shared by several parts is run once
-and belongs to the first part that plans it. A batch is every run of one
-episode under one backend and mapping, so a worker builds each episode spec once.
-Only runs the study folder does not already hold are batched (see
-:meth:`popnavshift.engine.store.RunStore.carried`): adding a controller to a study
-runs that controller alone.
+and belongs to the first part that plans it. The engine groups the runs into
+batches and runs those the study folder does not hold yet
+(:mod:`popnavshift.engine.batch_plan`); the read side selects a part's runs with the
+same plan (:mod:`popnavshift.read.folder`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 from ..episodes.specs import seed_set_id
 from ..errors import UnknownNameError
 from ..hashing import digest
 from ..tables import NO_ROBOT
-from .study import EpisodeSelection, Study
+from .part import EpisodeSelection
+from .study import Study
 
 
 @dataclass(frozen=True, order=True)
@@ -39,23 +39,6 @@ class Run:
     def id(self) -> str:
         """The ``run_id`` column: 16 hex digits of the key's hash, the same in every study."""
         return digest(list(self.key))[:16]
-
-
-@dataclass(frozen=True)
-class Batch:
-    episode: str
-    backend: str
-    mapping: str
-    runs: tuple[Run, ...]
-    #: each run's digest of its own inputs (:func:`.run_inputs.run_inputs`), in run order
-    inputs: tuple[str, ...] = ()
-
-    @property
-    def id(self) -> str:
-        """Stable id of the batch's runs and their inputs (its shard file name): a shard
-        made from other slot profiles, episode draws or code never matches."""
-        return digest([[list(r.key), i] for r, i in zip(self.runs, self.inputs or
-                                                         ("",) * len(self.runs), strict=True)])[:20]
 
 
 def select_episodes(selection: EpisodeSelection, episodes: Iterable) -> list:
@@ -106,17 +89,6 @@ def plan_study(study: Study, episodes: Iterable) -> list[Run]:
                                 seen.add(run.key)
                                 runs.append(run)
     return runs
-
-
-def batches(runs: Iterable[Run], inputs: Mapping[tuple, str] | None = None) -> list[Batch]:
-    """Group runs by (episode, backend, mapping), keeping plan order; ``inputs`` gives each
-    run's digest of its own inputs (:func:`.run_inputs.run_inputs`: its slot profiles,
-    episode draw and code), so a batch's id changes when any of its runs' inputs does."""
-    groups: dict[tuple[str, str, str], list[Run]] = {}
-    for r in runs:
-        groups.setdefault((r.episode, r.backend, r.mapping), []).append(r)
-    return [Batch(e, b, m, tuple(rs), tuple(inputs[r.key] for r in rs) if inputs else ())
-            for (e, b, m), rs in groups.items()]
 
 
 def count_runs(study: Study, episodes: Iterable) -> dict[str, dict[str, int]]:

@@ -21,7 +21,7 @@ from ..pipeline import read_table
 from ..populations.perturb import ProfileSet
 from ..responses.samples import with_samples
 from ..tables import check_table
-from .study import study_from_dict
+from .folder import StudyFolder
 
 #: The profile set of the first respondent when the manifest names no study part.
 MAIN_MAPPING = "A"
@@ -50,14 +50,10 @@ def _profile_set(profiles: pd.DataFrame, second: bool, main: str) -> pd.DataFram
 
 
 def main_mapping(folder: Path) -> str:
-    """The first profile set of the study's main part (else its first part), from
-    ``manifest.json``; :data:`MAIN_MAPPING` without one."""
-    path = Path(folder) / "manifest.json"
-    cfg = json.loads(path.read_text("utf-8")).get("study_config") if path.exists() else None
-    if not cfg or not cfg.get("parts"):
-        return MAIN_MAPPING
-    parts = study_from_dict(cfg, "manifest study_config").parts
-    return (parts["main"] if "main" in parts else next(iter(parts.values()))).mappings[0]
+    """The first profile set of the study's main part (:meth:`.folder.StudyFolder.main_part`);
+    :data:`MAIN_MAPPING` when the folder has no study or it has no main part."""
+    main = StudyFolder(folder).main_part()
+    return MAIN_MAPPING if main is None else main[1].mappings[0]
 
 
 def read_respondent_tables(folder: Path) -> tuple[pd.DataFrame, list[RespondentTables]]:
