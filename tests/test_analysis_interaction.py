@@ -101,3 +101,20 @@ def test_the_calibration_counts_the_interaction_placebos_at_both_levels():
     got = cal[(cal["comparison"] == "all") & cal["test"].str.startswith("interaction")]
     assert list(got["claims"]) == [1, 2] and list(got["placebos"]) == [10, 10]
     assert got["nominal"].tolist() == pytest.approx([0.05 / 8, 0.05])
+
+
+def test_the_plain_sentence_follows_the_interaction_verdicts():
+    """Change the verdicts and the words change; the sentence never says orderings cross."""
+    from popnavshift.report.plain import interaction_sentence
+
+    rows = pd.DataFrame({"comparison": ["matched", "matched", "all_pairs"],
+                         "metric": ["robot_time", "mean_delay", "mean_delay"],
+                         "t": [2.0, 6.4, 4.4], "p_t": [0.04, 1e-5, 2e-4], "n_null": 19})
+    s = interaction_sentence(interaction_verdicts(rows))
+    assert s is not None and s["lead"].endswith("yes, beyond the null.")
+    assert ("mean delay differences change more than under the null (mean delay t = 6.4"
+            in s["text"]) and "robot time differences are not shown to" in s["text"]
+    assert "not whether orderings cross" in s["text"] and "each of its 3 rows" in s["text"]
+    none = interaction_sentence(interaction_verdicts(rows.assign(p_t=0.5)))
+    assert none is not None and none["lead"].endswith("not shown beyond the null.")
+    assert interaction_sentence(interaction_verdicts(rows.assign(n_null=2))) is None

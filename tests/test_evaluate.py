@@ -19,8 +19,8 @@ from forked_cli import run_cli
 from popnavshift.design.study import load_study
 from popnavshift.errors import ConfigError
 from popnavshift.evaluate import card_tables, evaluate, make_card
-from popnavshift.evaluate.robustness import robustness_tables
 from popnavshift.evaluate.card import population_gaps, worst_run
+from popnavshift.evaluate.robustness import robustness_tables
 from popnavshift.tables import check_table
 
 CLASS_SPEC = "slow_near_peds.controller:SlowNearPeds"
