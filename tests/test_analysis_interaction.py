@@ -113,7 +113,7 @@ def test_the_plain_sentence_follows_the_interaction_verdicts():
     s = interaction_sentence(interaction_verdicts(rows))
     assert s is not None and s["lead"].endswith("yes, beyond the null.")
     assert ("mean delay differences change more than under the null (mean delay t = 6.4"
-            in s["text"]) and "robot time differences are not shown to" in s["text"]
+            in s["text"]) and "robot time differences are not shown to change more" in s["text"]
     assert "not whether orderings cross" in s["text"] and "each of its 3 rows" in s["text"]
     none = interaction_sentence(interaction_verdicts(rows.assign(p_t=0.5)))
     assert none is not None and none["lead"].endswith("not shown beyond the null.")

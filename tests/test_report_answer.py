@@ -16,7 +16,7 @@ import yaml
 from forked_cli import run_cli
 from popnavshift.analysis.evidence import test_comparisons as run_tests
 from popnavshift.analysis.nulls import headline_designs
-from popnavshift.analysis.verdicts import decide
+from popnavshift.analysis.verdicts import binomial_floor, decide
 from popnavshift.design.study import study_from_dict
 from popnavshift.engine.runner import run_study
 from popnavshift.read.folder import open_study
@@ -61,6 +61,8 @@ def test_the_report_opens_with_the_answer_in_plain_words(study):
     assert "Do controller rankings change with the pedestrian population beyond noise?" in plain
     assert "Pedestrian burden:" in plain and "Robot time:" in plain
     assert "placebos" in plain  # the deciding test's false-positive rate on this study
+    assert "Controller differences change with the population:" in plain  # interaction test
+    assert "not whether orderings cross" in plain
     head = page[box: page.index("</div>", box)]
     assert "swap permutations" in head and "size-matched random subsets of mixed" in head
     assert "prediction t" in head and "Exact permutation" in head and "episode-only" in head
@@ -68,7 +70,7 @@ def test_the_report_opens_with_the_answer_in_plain_words(study):
     assert head.count('→ <span class="verdict') == 8
     for name in ("evidence_headline", "evidence_null_rates", "evidence_ranks",
                  "evidence_power", "evidence_curve", "evidence_crossovers",
-                 "evidence_calibration"):
+                 "evidence_calibration", "evidence_interaction", "evidence_interaction_nulls"):
         assert (study / "report" / "tables" / f"{name}.csv").exists(), name
     assert (study / "report" / "figures" / "evidence_nulls.png").exists()
     assert 'id="calibration"' in page
@@ -137,8 +139,10 @@ def test_the_headline_is_recomputed_from_the_parquet_tables(study):
             a, b = float(mine[col]), float(getattr(row, col))
             assert (np.isnan(a) and np.isnan(b)) or a == pytest.approx(b, abs=1e-9), col
         # the report decides the whole table together: each rate at 5% / (its m rates)
-        null = nulls[(nulls["metric"] == row.metric) & (nulls["rule"] == row.rule)]["rate"]
-        d = decide(row.observed, null.to_numpy(float), row.rule, alpha=0.05 / mine["family"])
+        reps = nulls[(nulls["metric"] == row.metric) & (nulls["rule"] == row.rule)]
+        d = decide(row.observed, reps["rate"].to_numpy(float), row.rule,
+                   alpha=0.05 / mine["family"],
+                   floor=binomial_floor(reps["reversals"], reps["comparable"]))
         assert mine["family"] == (8 if row.rule == "raw" else 3)  # rates with nulls, per rule
         assert mine["verdict"] == d["verdict"]
         for col in ("ci_low", "ci_high"):

@@ -136,7 +136,7 @@ def interaction_sentence(inter: pd.DataFrame | None) -> dict[str, str] | None:
             "metric", key=lambda m: m.map(lambda x: order.get(x, 99)))
         bits = []
         for changes, words in ((True, "change more than under the null"),
-                               (False, "are not shown to")):
+                               (False, "are not shown to change more than under the null")):
             sel = c[(c["verdict"] == CHANGES) == changes]
             if sel.empty:
                 continue
@@ -153,7 +153,7 @@ def interaction_sentence(inter: pd.DataFrame | None) -> dict[str, str] | None:
                     "population to the other more than between null replicates, over every "
                     "cell and controller pair (a rank test of the standardized differences "
                     f"against {int(rows['n_null'].min())} replicates, each of its {m} rows at "
-                    f"p ≤ {alpha:.2g}; not whether orderings cross): " + "; ".join(parts)
+                    f"p ≤ {alpha:.3g}; not whether orderings cross): " + "; ".join(parts)
                     + "."}
 
 
