@@ -24,8 +24,8 @@ import time
 from pathlib import Path
 
 COMMANDS = ("personas", "probe", "profiles", "populations", "episodes", "simulate", "replay",
-            "bench", "plan", "calibrate", "run", "report", "evaluate", "compare", "audit",
-            "show-prompt", "describe")
+            "bench", "plan", "calibrate", "run", "report", "evaluate", "compare", "leaderboard",
+            "audit", "show-prompt", "describe")
 #: (label, arguments, exit code it must give, target wall time [s])
 CASES: list[tuple[str, tuple[str, ...], int, float]] = [
     ("--version", ("--version",), 0, 0.5),

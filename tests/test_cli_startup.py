@@ -48,8 +48,8 @@ def _probe(commands: list[list[str]], heavy: tuple[str, ...]) -> list:
 
 
 COMMANDS = ("personas", "probe", "profiles", "populations", "episodes", "simulate", "replay",
-            "bench", "plan", "calibrate", "run", "report", "evaluate", "compare", "audit",
-            "show-prompt", "describe")
+            "bench", "plan", "calibrate", "run", "report", "evaluate", "compare", "leaderboard",
+            "audit", "show-prompt", "describe")
 
 
 def test_help_version_and_usage_errors_import_no_analysis_stack():

@@ -66,7 +66,15 @@ verdicts, power, calibration, Table I…) and the cards' are DataFrames too:
 ```python
 tables = popnavshift.results("study")  # name → DataFrame, e.g. tables["evidence_headline"]
 cards = popnavshift.cards("study")  # card folder → {"verdict": …, "safety_rates": …, …}
+board = popnavshift.leaderboard("study")  # one row per controller (may simulate first)
 ```
+
+A card's `verdict` holds its two verdicts: `robustness` (`label`: population-sensitive,
+robust or undecided; `text`; `decide`, the command that would decide an undecided one;
+`row`, the rate that carries it: design, metric, observed, null mean, excess with its
+simultaneous interval, t, p) and `safety` (`label`: safe, unsafe, undecided or fails every
+run; `text`; `findings`; `threshold`). The leaderboard's columns are `compare.csv`'s
+([evaluate-your-controller.md](evaluate-your-controller.md) §7).
 
 What they read is checked against the manifest its writer left (`report/stamp.json`, each
 card's `card.json`: every file's sha256): a report or card that is damaged, unfinished or

@@ -95,8 +95,8 @@ def plan(
     prose("what would decide it: the fewest seed sets and null replicates that decide the "
           "verdict with 80% power if the excess stays at its estimate, with the null's "
           "spread falling with seed sets as the pilot's own replicate curve measured; "
-          "add them as `seeds:` and `replicates:` to the parts that run the comparison "
-          "and its null.")
+          "run them with `popnavshift run STUDY --seed-sets S --replicates R` (only the new "
+          "runs are simulated; `plan STUDY --seed-sets S --replicates R` counts them first).")
 
 
 def print_advice(advice, title: str) -> None:

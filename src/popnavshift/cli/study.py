@@ -45,8 +45,10 @@ def calibrate(
     headline table as the report decides it (all its rates together), then each test.
 
     Status: 'within' (the interval reaches down to the nominal level and rules out twice
-    it), 'above nominal', or 'too few placebos to tell'. Exit 1 if the study ran no null.
-    The tables go to stdout (`popnavshift calibrate study > calibration.txt`).
+    it), 'above nominal', or 'too few placebos to tell'. Then, for every card in
+    STUDY_DIR/evaluate (`popnavshift evaluate`, `leaderboard`), the same for its robustness
+    verdict on that controller's own placebos. Exit 1 if the study ran no null. The
+    tables go to stdout (`popnavshift calibrate study > calibration.txt`).
 
     Example: `popnavshift calibrate study`.
     """
@@ -68,13 +70,8 @@ def calibrate(
         t = Table("test (rule)", "claim", "claims / placebos", "rate [95% CI]", "nominal: status",
                   title=f"placebos: {title}")
         for r in cal[cal["comparison"] == scope].itertuples(index=False):
-            rate = ("–" if r.placebos == 0 else
-                    f"{100 * r.rate:.1f}% [{100 * r.cp_low:.1f}, {100 * r.cp_high:.1f}]")
-            colour = {"within": "green", "above nominal": "red"}.get(r.status, "yellow")
-            verdict = (f"{100 * r.nominal:.1f}%: [{colour}]{r.status}[/]"
-                       if r.kind == "false positive" else r.kind)
             t.add_row(f"{say(r.test)} ({say(r.rule)})", say(r.claim), f"{r.claims}/{r.placebos}",
-                      rate, verdict)
+                      _rate(r), _status(r))
         stdout.print(t)
     fp = cal[cal["comparison"].isin(["all", "table"]) & (cal["kind"] == "false positive")]
     bad = fp[fp["status"] == "above nominal"]
@@ -98,6 +95,49 @@ def calibrate(
         stdout.print("no placebo could make a claim for: "
                      + "; ".join(f"{n} (it needs {TESTS[n].min_nulls + 1} null replicates)"
                                  for n in unchecked) + ".", highlight=False)
+    _card_calibrations(study_dir)
+
+
+def _card_calibrations(study_dir: Path) -> None:
+    """Each card's verdict as a whole (its table of rates decided together, the raw rule)
+    on that controller's placebos: one row per card and claim; a damaged card is named."""
+    from ..io import read_csv
+    from ..read.access import EVALUATE_DIR, card_intact
+
+    t = Table("controller", "claim", "claims / placebos", "rate [95% CI]", "nominal: status",
+              title="placebos: each card's robustness verdict, on its controller's own nulls")
+    for card in sorted(p for p in (study_dir / EVALUATE_DIR).glob("*") if p.is_dir()):
+        doc, why = card_intact(card)
+        if why:
+            t.add_row(say(card.name), f"[yellow]not read: {say(why)}[/]", "", "", "")
+            continue
+        path = card / "robustness_calibration.csv"
+        cal = read_csv(path) if path.is_file() else None
+        rows = [] if cal is None or cal.empty else list(cal[
+            (cal["comparison"] == "table") & (cal["kind"] == "false positive")].itertuples())
+        if not rows:
+            t.add_row(say(doc.get("controller", card.name)), "no placebos: the study ran no "
+                      "null its comparisons could use", "", "", "")
+        for r in rows:
+            t.add_row(say(doc.get("controller", card.name)), say(r.claim),
+                      f"{r.claims}/{r.placebos}", _rate(r), _status(r))
+    if t.row_count:
+        stdout.print(t)
+
+
+def _rate(r) -> str:
+    """``2.5% [0.1, 13.2]``: a placebo claim rate with its Clopper–Pearson interval."""
+    if r.placebos == 0:
+        return "–"
+    return f"{100 * r.rate:.1f}% [{100 * r.cp_low:.1f}, {100 * r.cp_high:.1f}]"
+
+
+def _status(r) -> str:
+    """``5.0%: within`` coloured by the status (a diagnostic or power row: its kind)."""
+    if r.kind != "false positive":
+        return str(r.kind)
+    colour = {"within": "green", "above nominal": "red"}.get(r.status, "yellow")
+    return f"{100 * r.nominal:.1f}%: [{colour}]{r.status}[/]"
 
 
 def _calibration(study_dir: Path, fresh: bool):
