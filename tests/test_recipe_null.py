@@ -64,7 +64,8 @@ def pooled_split(spec: PopulationSpec, records: Records) -> Members:
 VERDICT_RECIPE = {
     "analysis/verdicts.py": [("", '''
 
-def robust_test(observed: float, null: np.ndarray, *, alpha: float = ALPHA) -> dict:
+def robust_test(observed: float, null: np.ndarray, *, alpha: float = ALPHA,
+                floor: float = 0.0) -> dict:
     """A prediction t on the median and MAD of the replicates: (observed − median) over
     1.4826·MAD·√(1 + 1/P) against t on P − 1 df; above or below the null, else undecided."""
     null = np.asarray(null, float)
