@@ -230,3 +230,16 @@ def test_the_headline_table_as_a_whole_claims_at_most_its_nominal_rate():
     assert np.mean(claims) <= bound(0.05, len(claims))
     assert status(0.0, 0.08, 0.05) == "within" and status(0.06, 0.2, 0.05) == "above nominal"
     assert status(0.01, 0.2, 0.05) == "too few placebos to tell"
+
+
+def test_the_binomial_floor_binds_only_where_rates_are_too_coarse_for_the_normal_model():
+    from popnavshift.analysis.verdicts import NORMAL_COUNT, binomial_floor
+
+    coarse = binomial_floor([2, 3, 2, 2], [12, 12, 12, 12])  # n̄·p(1−p) ≈ 2 < 5
+    p = (9 + 0.5) / (48 + 1)
+    assert coarse == pytest.approx(np.sqrt(p * (1 - p) / 12)) and 12 * p * (1 - p) < NORMAL_COUNT
+    assert binomial_floor([40, 38, 41], [188, 190, 186]) == 0.0  # n̄·p(1−p) ≈ 31: no floor
+    assert binomial_floor([], []) == 0.0 and binomial_floor([1], [0]) == 0.0
+    # with the floor a coarse null that happens to agree cannot make a tiny spread decide
+    tight = prediction_test(0.5, np.array([0.25, 0.25, 0.25, 0.26, 0.25]), floor=coarse)
+    assert tight["verdict"] == "undecided"

@@ -19,7 +19,7 @@ import popnavshift.cli.evaluate  # noqa: F401  (registers `compare`, as MAIN doe
 from forked_cli import run_cli
 from popnavshift.evaluate.compare import compare_table
 from popnavshift.evaluate.compare_page import display_table
-from popnavshift.evaluate.export import to_latex, to_markdown
+from popnavshift.evaluate.export import md_escape, to_latex, to_markdown
 from synth_study import synthetic_study
 
 #: `compare` is registered by importing popnavshift.cli.evaluate (as for test_evaluate)
@@ -121,6 +121,26 @@ def test_a_current_card_is_reused_without_running_anything(quick):
     proc = cli("evaluate", "HRVO", "--study-dir", "study-quick", "--n-boot", "99",
                cwd=folder.parent)  # another rule: made again, on the same runs
     assert proc.returncode == 0 and "card is current" not in proc.stderr, proc.stderr
+
+
+DOC = Path(__file__).resolve().parents[1] / "docs" / "leaderboard.md"
+
+
+def _doc_table(text: str) -> list[str]:
+    """The lines of the Markdown table between the doc's leaderboard markers."""
+    body = text.split("<!-- leaderboard:begin -->")[1].split("<!-- leaderboard:end -->")[0]
+    return [ln for ln in body.splitlines() if ln.startswith("|")]
+
+
+@pytest.mark.slow  # reads the quick study's leaderboard
+def test_the_docs_leaderboard_is_in_the_format_the_command_writes(quick):
+    written = (quick[0] / "leaderboard" / "leaderboard.md").read_text().splitlines()
+    doc = _doc_table(DOC.read_text())
+    assert doc[:2] == written[:2]  # the same columns, in the same order and alignment
+    cells = len(written[0].split(" | "))
+    assert all(len(row.split(" | ")) == cells for row in doc)
+    rows = [row.split(" | ")[0].strip("| ") for row in doc[2:]]
+    assert rows[:len(BOARD)] == [md_escape(c) for c in BOARD]
 
 
 def test_the_leaderboards_rows_are_every_behaviour_once():

@@ -290,7 +290,7 @@ def test_audit_options_exit_0_1_or_2_in_one_line(finished, args, strict):
 
 @settings(FAST, max_examples=6)
 @given(st.lists(st.tuples(st.sampled_from(["--seed", "--respondent-seed", "--matched-n",
-                                           "--respondent"]),
+                                           "--samples", "--respondent"]),
                           st.one_of(numbers, st.sampled_from(["rule", "rul", "openai"]))),
                 max_size=2))
 def test_probe_options_exit_0_or_2_in_one_line(finished, tmp_path_factory, args):

@@ -90,12 +90,23 @@ part = st.fixed_dictionaries({}, optional={
                                some(["A", "B", "A~block-caution"], ["E", "A~shufle"]))),
     "baseline": often(st.booleans()), "seeds": often(seeds), "null_design": null_design,
 }).flatmap(lambda p: with_unknown_key(p, "bogus_key"))
+# extra_body and samples (#34 item 7): an openai respondent's request fields, now and then
+# a refused one (stream, n, one the respondent sets), one past the size limit, or no mapping
+extra_body = rarely(junk, st.one_of(
+    st.dictionaries(st.sampled_from(["cache_prompt", "top_k", "stream", "n", "seed", "tools"]),
+                    often(st.sampled_from([False, 3, "x"])), max_size=2),
+    st.just({"pad": "x" * 5000})), 3)
+samples = rarely(st.sampled_from([0, -1, 101, True, 1.5, "2", None]), st.integers(1, 3), 4)
 respondent = st.fixed_dictionaries(
     {"name": rarely(st.just("rul"), st.sampled_from(["rule", "openai"]))},
     optional={"options": st.dictionaries(
         rarely(st.just("modle"), st.sampled_from(["seed", "scale", "temperature", "model",
-                                                   "max_retry_after"])),
-        often(st.sampled_from([0, 1, 0.5, "m"])), max_size=2)})
+                                                   "max_retry_after", "api_key_env"])),
+        often(st.sampled_from([0, 1, 0.5, "m", "none"])), max_size=2),
+        "samples": samples},
+).flatmap(lambda r: rarely(st.just(r), extra_body.map(lambda e: {
+    **r, "options": {**r.get("options", {}), "extra_body": e}}), 1)
+    if r["name"] == "openai" else st.just(r))
 names = rarely(st.sampled_from(["a" * 300, "a/b", "..", ESCAPE, ""]), st.just("fuzz"))
 part_names = rarely(st.sampled_from(["bad name", "", ESCAPE]), st.sampled_from(["main", "two"]))
 studies = st.fixed_dictionaries(
@@ -144,6 +155,23 @@ def test_a_study_file_is_accepted_and_plannable_or_refused_in_one_line(data):
         assert part.planned_populations and part.controllers and part.backends
         for seed in part.seeds:  # the episodes stage draws these
             get_episode(f"{ONE_EPISODE}@s{seed}", seed=study.seed)
+
+
+@settings(max_examples=150, deadline=None, database=None,
+          suppress_health_check=list(HealthCheck))
+@given(st.one_of(respondent, st.builds(lambda body, k: {
+    "name": "openai", "options": {"extra_body": body}, "samples": k}, extra_body, samples)))
+def test_a_respondent_s_samples_and_extra_body_are_accepted_or_refused_in_one_line(spec):
+    """In a study otherwise valid, so that the respondent's checks are reached: a refused
+    ``samples`` or ``extra_body`` is one line naming the file; an accepted one plans."""
+    text = yaml.safe_dump({"name": "fuzz", "parts": {"main": {}}, "respondent": spec})
+    study = _accepted_or_one_line(text)
+    if study is None:
+        return
+    k = study.respondent.samples
+    assert plan_study(study, EPISODES) and type(k) is int and k in (1, 2, 3)  # `true` is not 1
+    body = study.respondent.options.get("extra_body") or {}  # None: no extra fields
+    assert isinstance(body, dict) and not {"stream", "n", "seed", "tools"} & set(body)
 
 
 @settings(max_examples=150, deadline=None, database=None,

@@ -113,10 +113,16 @@ def test_a_model_changed_in_its_weights_only_is_asked_again_and_comes_back(
         llama_run(server, tmp_path)
     assert server.calls == 6
     said = [r.getMessage() for r in caplog.records if "canary" in r.getMessage()]
-    assert len(said) == 1 and "asked again" in said[0] and "weights changed" in said[0]
+    assert len(said) == 1 and "asked every record again" in said[0] and "weights changed" in said[0]
     server.weights = "model-a"  # the former model back: its answers are still there
-    llama_run(server, tmp_path)
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="popnavshift"):
+        llama_run(server, tmp_path)
     assert server.calls == 6
+    said = [r.getMessage() for r in caplog.records if "canary" in r.getMessage()]
+    # one line says it changed back, and claims no record is asked again: none is
+    assert len(said) == 1 and "its records are asked again" not in said[0], said
+    assert "only answers this model gave are taken from the cache" in said[0]
 
 
 def test_a_restart_with_other_slots_or_context_asks_nothing_again(server, tmp_path):

@@ -211,11 +211,10 @@ def test_the_compare_page_loads_without_console_errors(tmp_path):
     ctrls = ("reactive", "HRVO", "<b>odd & name</b>")  # escaped, not markup
     runs, peds = synthetic_study({"p1": no_effect, "p2": no_effect}, n_cells=4, variants=2,
                                  controllers=ctrls)
-    verdicts = {c: {"robustness": {"label": "inconclusive", "text": "", "decide": "", "row": {}},
-                    "safety": {"label": "safe", "text": "", "findings": [], "threshold": 0.01}}
-                for c in ctrls}
-    verdicts["HRVO"]["safety"] = {"label": "unsafe", "text": "", "threshold": 0.01,
-                                  "findings": ["wall and obstacle contacts in 22.5%"]}
+    verdicts = {c: {"robustness": {"label": "undecided", "text": "", "row": {}},
+                    "safety": {"label": "safe", "text": "", "findings": []}} for c in ctrls}
+    verdicts["HRVO"]["safety"] = {"label": "unsafe", "text": "collides", "findings": [
+        "wall and obstacle contacts in 22.5%"]}
     table, per_pop = compare_table(runs, peds, ctrls, verdicts)
     cards = {c: tmp_path / EVALUATE_DIR / f"c{i}" / "card.html" for i, c in enumerate(ctrls)}
     study = study_from_dict(STUDY)
@@ -237,23 +236,22 @@ def test_the_card_loads_and_shows_its_safety_table(tmp_path):
 
     from popnavshift.evaluate.card import card_tables
     from popnavshift.evaluate.card_page import write_card
+    from popnavshift.evaluate.robustness import robustness_tables
     from popnavshift.outputs import FileSet
     from synth_study import no_effect, synthetic_study
 
     runs, peds = synthetic_study({"p1": no_effect, "p2": no_effect}, n_cells=6, variants=3)
     hit = runs.index[(runs["controller"] == "a")][::3]
     runs.loc[hit, "outcome"] = "pedestrian_collision"
-    from popnavshift.evaluate.robustness import robustness_tables
-
-    rob = robustness_tables(runs, peds, "a", ("b", "c"), {}, ["p1", "p2"], n_boot=20)
+    rob = robustness_tables(runs, peds, "a", ("b", "c"), {}, ["p1", "p2"], n_boot=50)
     card = card_tables(runs, peds, "a", ("b", "c"), rob, rng=np.random.default_rng(0),
                        n_boot=50)
     meta = {"study": "synthetic", "part": "main", "check": "skipped", "reused": 0,
             "executed": 0, "n_runs": 36, "n_errors": 0, "n_cells": 6, "n_populations": 2,
             "backends": "orca", "mappings": "A", "replay_note": "", "n_boot": 50, "seed": 0,
             "base_folder": "-", "seed_sets": 1, "n_used": len(runs), "safety_threshold": None,
-            "parts": "main", "n_every": len(runs), "version": "t", "config_hash": "-",
-            "made": "-"}
+            "parts": "main", "n_every": len(runs), "version": "0", "config_hash": "h",
+            "made": "today"}
     with FileSet(tmp_path, "card.json") as files:
         html, _ = write_card(card, meta, files, None)
         files.commit({})
@@ -262,4 +260,4 @@ def test_the_card_loads_and_shows_its_safety_table(tmp_path):
     assert dom["scripts"] == 0 and dom["rows"] > 10
     assert dom["images"] and all(i["ok"] and i["shown"] > 600 for i in dom["images"])
     text = html.read_text()
-    assert "Safety: unsafe." in text and "pedestrian collisions (robot moving)" in text
+    assert "Safety: unsafe" in text and "pedestrian collisions (robot moving)" in text

@@ -155,6 +155,22 @@ def test_evaluate_out_never_writes_over_the_study(carded, tmp_path):
     assert not (s / "report").exists()
 
 
+def test_a_card_and_its_comparison_name_the_study_folder_never_its_path(carded, tmp_path):
+    """Given as an absolute path, the study folder is named by its name in the card, its
+    evaluation.json and the comparison (#35 item 4: no machine path in a study's outputs)."""
+    s = study_copy(carded, tmp_path / "s")
+    proc = compare(s.resolve(), "--seed", "5")  # a new seed: the card is written again
+    assert proc.returncode == 0 and "made again" in proc.stderr, proc.stderr
+    written = [p for p in (*(s / "evaluate").rglob("*"), *(s / "compare").rglob("*"))
+               if p.is_file()]
+    assert {"evaluation.json", "card.html", "card.json", "compare.html"} <= {
+        p.name for p in written}
+    for path in {str(tmp_path), str(tmp_path.resolve())}:
+        assert [p.name for p in written if path.encode() in p.read_bytes()] == []
+    assert json.loads((s / "evaluate" / "reactive" / "evaluation.json").read_text())[
+        "base_folder"] == "s"
+
+
 @pytest.mark.parametrize("name", ["..", ".", "../..", "a/../../b", ".hidden", "-", "x" * 300,
                                   "HRVO{\"horizon\": 4}", "pkg.mod:Class"])
 def test_a_controller_name_is_a_folder_inside_evaluate(name, tmp_path):

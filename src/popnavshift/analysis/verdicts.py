@@ -57,16 +57,26 @@ def min_nulls_permutation(alpha: float = ALPHA) -> int:
     return int(np.ceil(1 / alpha - 1 - 1e-9))
 
 
+#: a rate over n̄ comparisons is treated as normal (no floor) when n̄·p(1−p) reaches this:
+#: the usual condition for the normal approximation of a binomial
+NORMAL_COUNT = 5.0
+
+
 def binomial_floor(reversals: object, comparable: object) -> float:
-    """The least SD a null rate can have: √(p(1−p)/n̄), p the replicates' pooled rate
+    """The least SD to take between null replicates whose rates are too coarse for the
+    prediction t's normal model: √(p(1−p)/n̄), p the replicates' pooled rate
     (Σ reversals + ½) / (Σ comparable + 1) and n̄ their mean number of comparable
-    comparisons; 0 without counts. ``reversals``, ``comparable``: one count per replicate."""
+    comparisons, when n̄·p(1−p) < :data:`NORMAL_COUNT`; 0 otherwise (the replicates' own
+    spread is then the reference, smaller than the binomial SD when they share episodes)
+    and without counts. ``reversals``, ``comparable``: one count per replicate."""
     k = np.asarray(reversals, float)
     n = np.asarray(comparable, float)
     ok = np.isfinite(k) & np.isfinite(n) & (n > 0)
     if not ok.any():
         return 0.0
     p = (k[ok].sum() + 0.5) / (n[ok].sum() + 1)
+    if n[ok].mean() * p * (1 - p) >= NORMAL_COUNT:
+        return 0.0
     return float(np.sqrt(p * (1 - p) / n[ok].mean()))
 
 

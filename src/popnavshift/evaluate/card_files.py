@@ -45,6 +45,12 @@ def slug(identity: str) -> str:
     return s if s == identity else f"{s}-{digest(identity)[:8]}"
 
 
+def folder_name(folder: Path) -> str:
+    """How a card, its evaluation.json and a comparison name the study folder: its name,
+    never a machine path (records stay portable, docs/llm.md)."""
+    return Path(folder).resolve().name
+
+
 def card_folder(base_folder: Path, identity: str) -> Path:
     """``base_folder/evaluate/<slug>``: the default folder of ``identity``'s card."""
     return Path(base_folder) / EVALUATE_DIR / slug(identity)

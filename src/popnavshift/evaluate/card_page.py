@@ -68,10 +68,11 @@ def population_panel(ax, per_population: pd.DataFrame, metric: str, controllers:
     pops = population_order(per_population["population"].unique())
     x = np.arange(len(pops))
     styles = controller_styles(controllers)
+    step = min(0.15, 0.8 / max(1, len(controllers)))  # a population's markers stay apart
     for i, ctrl in enumerate(controllers):
         s = per_population[per_population["controller"] == ctrl].set_index("population")
         look, mine = styles[ctrl], ctrl == highlight
-        ax.scatter(x + (i - (len(controllers) - 1) / 2) * 0.15,
+        ax.scatter(x + (i - (len(controllers) - 1) / 2) * step,
                    s[metric].reindex(pops).to_numpy(float), marker=look.marker,
                    s=60 if mine else 28, color=look.colour, label=ctrl, zorder=3 if mine else 2,
                    edgecolors="black" if mine else "none", linewidths=1.2)

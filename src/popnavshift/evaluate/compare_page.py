@@ -15,12 +15,14 @@ from __future__ import annotations
 
 import base64
 import os
+import re
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 from jinja2 import Environment, select_autoescape
+from markupsafe import Markup, escape
 
 from ..errors import ConfigError, InputError
 from ..io import read_json_object
@@ -28,13 +30,14 @@ from ..outputs import FileSet, check_writable
 from ..version import __version__
 from ..viz.style import controller_styles
 from .card import METRIC_LABELS
+from .card_files import folder_name
 from .card_page import png_bytes, population_panel
 from .compare import COMPARE_METRICS, Comparison
 from .export import latex_table, table_text
 
 RANKED = COMPARE_METRICS  # the ranks the tables show: every ranked metric, as the CSV
 _SHARES = {"success": "success %", "pedestrian_collision": "ped. coll. % (robot moving)",
-           "standing_contact": "standing contacts %", "world_collision": "wall/obstacle %",
+           "standing_contact": "standing contacts %", "world_collision": "wall / obstacle %",
            "timeout": "timeout %", "controller_error": "ctrl error %"}
 _MEANS = {"min_clearance": "min. clearance [m]", "path_length": "path [m]",
           "stop_time": "stop time [s]"}
@@ -143,14 +146,30 @@ def render_html(comparison: Comparison, png: bytes, page: Path) -> str:
     env = Environment(autoescape=select_autoescape(default=True, default_for_string=True))
     shown = display_table(comparison.table)
     links = {c: os.path.relpath(p, Path(page).parent) for c, p in comparison.cards.items()}
+    rows = [{k: _two_lines(v) if k not in ("controller", "robustness", "safety") else v
+             for k, v in r.items()} for r in shown.to_dict("records")]
     styles = controller_styles(comparison.controllers)
     looks = {c: {"colour": st.colour, "symbol": MARKER_SYMBOLS.get(st.marker, st.marker)}
              for c, st in styles.items()}
     return env.from_string(_PAGE).render(
-        c=comparison, columns=list(shown.columns), rows=shown.to_dict("records"),
+        c=comparison, columns=list(shown.columns), rows=rows,
         verdicts=comparison.verdicts, looks=looks, version=__version__,
         links=links, png=base64.b64encode(png).decode("ascii"), stem=Path(page).stem,
+        folder=folder_name(comparison.base_folder),
         heading=HEADINGS.get(comparison.kind, HEADINGS["compare"]))
+
+
+_INTERVAL = re.compile(r"^(.*?) ([\[(].*)$")
+
+
+def _two_lines(value: Any) -> Any:
+    """``90.0 [76.3, 97.2]`` (a share and its interval) or ``2 (1–3)`` (a rank and its
+    range) as the value with the bracket below it, smaller (the page's table stays narrow
+    enough for a 1280 px window); anything else as it is. Escaped."""
+    m = _INTERVAL.match(value) if isinstance(value, str) else None
+    if not m:
+        return value
+    return Markup(f"{escape(m.group(1))}<br><span class=\"ci\">{escape(m.group(2))}</span>")
 
 
 #: each matplotlib marker as the character the page draws it with beside a row's name
@@ -223,16 +242,16 @@ def write_comparison(comparison: Comparison, page: Path) -> dict[str, Path]:
 _PAGE = """<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>{{ heading }}:
 {{ c.controllers | join(", ") }}</title>
-<style>body{font-family:sans-serif;margin:1.5em auto;max-width:1200px;padding:0 1em;
-font-size:14px}table{border-collapse:collapse;margin:.4em 0;font-size:12px}
-td,th{border:1px solid #ccc;padding:2px 6px}td{text-align:right;white-space:nowrap}
+<style>body{font-family:sans-serif;margin:1.5em auto;max-width:1240px;padding:0 1em;
+font-size:14px}table{border-collapse:collapse;margin:.4em 0;font-size:11px}
+td,th{border:1px solid #ccc;padding:2px 4px}td{text-align:right;white-space:nowrap}
 td.l,th{text-align:left}.small{color:#555;font-size:12px}.wrap{overflow-x:auto;max-width:100%}
 .population-sensitive,.unsafe,.fails-every-run{color:#b00;font-weight:bold}
 .robust,.safe{color:#2a7a2a;font-weight:bold}.undecided{color:#a60}
-.mark{font-size:15px}img{max-width:100%}</style></head><body>
+.mark{font-size:15px}img{max-width:100%}.ci{color:#666;font-size:10px}</style></head><body>
 <h1>{{ heading }}</h1>
 <p>Study <b>{{ c.study.name }}</b> (configuration {{ c.study.config_hash() }}, folder
-{{ c.base_folder }}): {{ c.controllers | length }} controllers on the same episodes and
+{{ folder }}): {{ c.controllers | length }} controllers on the same episodes and
 populations. PopNavShift {{ version }}, made {{ c.made }}. Every card was made under the
 same rules: against {{ c.settings.get("baselines", []) | join(", ") }},
 {{ c.settings.get("n_boot", "–") }} bootstrap resamples, seed {{ c.settings.get("seed", "–") }},

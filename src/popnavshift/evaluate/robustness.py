@@ -35,11 +35,14 @@ import pandas as pd
 from ..analysis.calibrate import calibration_table
 from ..analysis.evidence import complete_design, test_comparisons
 from ..analysis.nulls import design_populations, family_verdicts, headline_designs
+from ..analysis.ranked import RANKED_METRICS
 from ..analysis.replicates import seed_sets
+from ..analysis.reversals import COMPARISONS
 from ..analysis.verdicts import ABOVE, ALPHA, BELOW, MIN_EFFECT, SMALL
 from ..populations.identity import PopulationSpec, spec_of
 from ..tables import NO_ROBOT
 
+RANKED = {m.name: m for m in RANKED_METRICS}
 SENSITIVE, ROBUST, UNDECIDED_LABEL = "population-sensitive", "robust", "undecided"
 #: the columns of the card's robustness table, in order
 COLUMNS = ("design", "baseline", "metric", "rule", "observed", "null_mean", "excess", "ci_low",
@@ -107,7 +110,8 @@ def robustness_tables(runs: pd.DataFrame, peds: pd.DataFrame, controller: str,
     if not frames["head"]:
         empty = pd.DataFrame(columns=COLUMNS)
         return Robustness(empty, pd.DataFrame(), empty, pd.DataFrame(), UNDECIDED_LABEL,
-                          "no null design to decide against: " + "; ".join(missing.values()),
+                          "no null design to decide against: " + "; ".join(missing.values())
+                          + ".",
                           missing)
     cat = {k: pd.concat(v, ignore_index=True) for k, v in frames.items()}
     head = family_verdicts(cat["head"], cat["null"])
@@ -146,7 +150,7 @@ def robustness_label(head: pd.DataFrame, by_baseline: pd.DataFrame,
     above = raw[raw["verdict"] == ABOVE]
     if len(above):
         pairs = by_baseline[(by_baseline["rule"] == "raw") & (by_baseline["verdict"] == ABOVE)]
-        where = "; ".join(f"{r.metric} ({r.design}: {100 * r.excess:+.1f} pp "
+        where = "; ".join(f"{_words(r.metric)} ({_place(r.design)}: {100 * r.excess:+.1f} pp "
                           f"[{100 * r.ci_low:+.1f}, {100 * r.ci_high:+.1f}])"
                           for r in above.itertuples())
         carried = ("; against " + ", ".join(sorted(set(pairs["baseline"]))) + " alone"
@@ -168,7 +172,20 @@ def robustness_label(head: pd.DataFrame, by_baseline: pd.DataFrame,
     widest = open_rows.loc[width.idxmax()]
     return UNDECIDED_LABEL, (f"Neither an excess over the null nor its absence (< "
                              f"{100 * MIN_EFFECT:.0f} pp) is shown for {len(open_rows)} of "
-                             f"its {len(raw)} rates; the least decided: {widest.metric} "
-                             f"({widest.design}: {100 * widest.excess:+.1f} pp "
+                             f"its {len(raw)} rates; the least decided: "
+                             f"{_words(widest.metric)} ({_place(widest.design)}: "
+                             f"{100 * widest.excess:+.1f} pp "
                              f"[{100 * widest.ci_low:+.1f}, {100 * widest.ci_high:+.1f}]) "
                              f"({level}).")
+
+
+def _words(metric: str) -> str:
+    """``mean delay``: a ranked metric in words (its id when it is not one)."""
+    m = RANKED.get(metric)
+    return m.label if m is not None else metric
+
+
+def _place(design: str) -> str:
+    """``across the population pairs``: where a comparison design's rate was measured."""
+    c = COMPARISONS.get(design)
+    return c.phrase if c is not None else design

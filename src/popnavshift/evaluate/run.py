@@ -62,7 +62,14 @@ from ..version import __version__
 from ..viz.replay import render_svg, run_outcome
 from .advice import Advice, advice_text, advise
 from .card import OUTCOME_LABELS, Card, card_tables
-from .card_files import card_folder, card_identity, check_card_settings, check_out, runs_digest
+from .card_files import (
+    card_folder,
+    card_identity,
+    check_card_settings,
+    check_out,
+    folder_name,
+    runs_digest,
+)
 from .card_page import write_card
 from .export import table_text
 from .robustness import robustness_tables
@@ -219,7 +226,7 @@ def _write_manifest(ev: Evaluation) -> None:
         "config_hash": ev.study.config_hash(),
         "part": ev.part,
         "parts": list(ev.parts),
-        "base_folder": str(ev.base_folder.resolve()),
+        "base_folder": folder_name(ev.base_folder),
         "counts": ev.counts,
         "timings": {"total_s": round(ev.seconds, 2), "runs_reused": ev.reused,
                     "runs_executed": ev.executed},
@@ -270,7 +277,7 @@ def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0,
             "backends": ", ".join(sorted(ev.runs["backend"].unique())),
             "mappings": ", ".join(sorted(ev.runs["mapping"].unique())),
             "replay_note": note, "n_boot": n_boot, "seed": seed,
-            "base_folder": str(ev.base_folder), "seed_sets": n_sets, "n_used": len(ev.runs),
+            "base_folder": folder_name(ev.base_folder), "seed_sets": n_sets, "n_used": len(ev.runs),
             "safety_threshold": threshold, "parts": ", ".join(ev.parts),
             "n_every": len(every[0]), "version": __version__,
             "config_hash": ev.study.config_hash(), "made": made}

@@ -167,7 +167,8 @@ def served_identity(ask: Callable[[], Identity | None], cache: ResponseCache | N
     """The identity ``ask()`` gets from the server (None: the server names none),
     remembered in ``cache``; the remembered one when ``ask`` cannot reach it
     (MissingKeyError, a NotReady that is not final). When it differs from the one
-    remembered, one line says why, and that the records are asked again. A rejected key
+    remembered, one line says why, and that only this model's answers are taken from the
+    cache (a new model is asked again; one seen before gets its own). A rejected key
     (a final NotReady) raises TransportError: an authentication problem, naming the URL."""
     known = cache.identity(endpoint, model) if cache is not None else None
     try:
@@ -183,8 +184,10 @@ def served_identity(ask: Callable[[], Identity | None], cache: ResponseCache | N
         return known
     if found is not None and cache is not None:
         if known is not None and known.key != found.key:
-            log.warning("%s %s at %s: %s; answers cached from the former are not used (they "
-                        "come back when it does), its records are asked again", name, model,
-                        endpoint, why_changed(known.details, found.details))
+            # true of a model new to the cache and of one seen before coming back
+            log.warning("%s %s at %s: %s; only answers this model gave are taken from the "
+                        "cache (a model new to it is asked every record again), the former's "
+                        "come back when it does", name, model, endpoint,
+                        why_changed(known.details, found.details))
         cache.remember_identity(endpoint, model, found.key, found.details)
     return found
