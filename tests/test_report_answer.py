@@ -61,6 +61,8 @@ def test_the_report_opens_with_the_answer_in_plain_words(study):
     assert "Do controller rankings change with the pedestrian population beyond noise?" in plain
     assert "Pedestrian burden:" in plain and "Robot time:" in plain
     assert "placebos" in plain  # the deciding test's false-positive rate on this study
+    assert "Controller differences change with the population:" in plain  # interaction test
+    assert "not whether orderings cross" in plain
     head = page[box: page.index("</div>", box)]
     assert "swap permutations" in head and "size-matched random subsets of mixed" in head
     assert "prediction t" in head and "Exact permutation" in head and "episode-only" in head
@@ -73,7 +75,7 @@ def test_the_report_opens_with_the_answer_in_plain_words(study):
     assert "blocked pedestrians" in head or "blocked_pct" not in set(tested["metric"])
     for name in ("evidence_headline", "evidence_null_rates", "evidence_ranks",
                  "evidence_power", "evidence_curve", "evidence_crossovers",
-                 "evidence_calibration"):
+                 "evidence_calibration", "evidence_interaction", "evidence_interaction_nulls"):
         assert (study / "report" / "tables" / f"{name}.csv").exists(), name
     assert (study / "report" / "figures" / "evidence_nulls.png").exists()
     assert 'id="calibration"' in page

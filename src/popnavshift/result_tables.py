@@ -47,6 +47,15 @@ RESULT_TABLES: tuple[ResultTable, ...] = (
                 "− null_mean with its simultaneous interval ci_low–ci_high (level, over a "
                 "family of m rates), the verdict and the test it rests on (p_t, p_value, "
                 "p_adj); episode_ci_low–high: the episode-only interval (no test)"),
+    ResultTable("evidence_interaction", "answer",
+                "one interaction test — do controller differences change with the population "
+                "more than under the null? — per comparison and metric",
+                ("comparison", "metric"),
+                "statistic (rankz: the mean over (pair, cell, controller pair) of the rank of "
+                "|dD/SE| among the designs compared), T, terms; null_mean, null_sd of the null "
+                "replicates' T (n_null, of kind `null`); t on df, its one-sided p_t, p_adj "
+                "(× family), alpha_row (the level each row is decided at), p_value (exact "
+                "permutation), verdict"),
     ResultTable("evidence_null_rates", "answer",
                 "one null replicate's rate, per comparison, metric and rule",
                 ("comparison", "metric", "rule", "replicate"),
@@ -91,6 +100,11 @@ RESULT_TABLES: tuple[ResultTable, ...] = (
                 "placebos, claims, rate with its Clopper–Pearson interval cp_low–cp_high, the "
                 "nominal level, within and status (within, above nominal, too few placebos "
                 "to tell)"),
+    ResultTable("evidence_interaction_nulls", "calibration",
+                "one null replicate's interaction statistic, per comparison and metric",
+                ("comparison", "metric", "replicate"),
+                "T (ranked among the observed and every replicate); placebo_t, placebo_p_t: "
+                "the replicate as the observed against the others (ranks among the replicates)"),
     ResultTable("evidence_placebo_crossovers", "calibration",
                 "one crossover test on one null replicate's populations (a placebo)",
                 ("comparison", "metric", "replicate")),

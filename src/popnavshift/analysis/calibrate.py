@@ -18,6 +18,9 @@ rule makes on a placebo is a false positive. Per rule and claim:
   and hundreds may truly order controllers differently) are no placebo for it, so their
   crossovers are reported as a diagnostic; each kind names its claim
   (:data:`popnavshift.populations.identity.NULL_KINDS`);
+* **interaction test** (:mod:`.interaction`): replicate j as the observed against the
+  other replicates (ranks recomputed among them); a claim that controller differences
+  change more than under the null at the level its table decides at (0.05/m) and at 5 %;
 * diagnostic, no verdict rests on it: the **episode-only interval** of the excess excludes
   0 (nominal 5 % if it were a test against the null; it is not: it holds the replicates
   fixed).
@@ -202,16 +205,18 @@ def status(low: float, high: float, nominal: float) -> str:
 
 
 def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame | None = None,
-                      *, family: int = 0, null_kinds: Mapping[str, str] | None = None
-                      ) -> pd.DataFrame:
+                      *, family: int = 0, null_kinds: Mapping[str, str] | None = None,
+                      interaction: pd.DataFrame | None = None) -> pd.DataFrame:
     """Per comparison (and ``all`` pooled) and check: placebos, claims, the claim rate with
     its Clopper–Pearson 95 % interval, the nominal level, ``within`` (the interval's lower
     end at or below it; NaN for power rows) and ``status`` (:func:`status`). Rows follow
     ``CHECKS``, then the headline table as a whole (with ``family`` raw rates, each decided
     at α/``family``), the crossover test (a placebo between populations of the same
     personas, a diagnostic among those of another null kind: ``null_kinds`` gives each
-    comparison's kind of :data:`NULL_KINDS`, which names its claim) and the episode-only
-    interval (a diagnostic)."""
+    comparison's kind of :data:`NULL_KINDS`, which names its claim), the interaction test
+    (``interaction``: its leave-one-out placebos, each claim with its own ``nominal``,
+    :func:`.interaction.interaction_placebos`) and the episode-only interval (a
+    diagnostic)."""
     if null_rates is None or null_rates.empty:
         return pd.DataFrame(columns=COLUMNS)
     p = placebos(null_rates)
@@ -225,6 +230,8 @@ def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame
             test="crossover test", rule="—",
             claim=[NULL_KINDS[null_of[c]].crossover for c in placebo_crossovers["comparison"]],
             claim_made=placebo_crossovers["any"].astype(bool)))
+    if interaction is not None and not interaction.empty:
+        frames.append(interaction)
     if "episode_excludes_zero" in null_rates:
         e = null_rates[null_rates["episode_excludes_zero"].notna()]
         frames.append(e.assign(test="episode-only interval",
@@ -241,6 +248,8 @@ def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame
             kind, nominal = kinds.get((test, claim), ("false positive", ALPHA))
             if claim == FAMILY_SMALL:
                 nominal = ALPHA / 2
+            if "nominal" in g and g["nominal"].notna().any():  # a claim that names its level
+                nominal = float(g["nominal"].dropna().iloc[0])
             if test.startswith("episode") or (test == "crossover test"
                                                and claim not in FALSE_CROSSOVERS):
                 kind = "diagnostic"
@@ -254,7 +263,8 @@ def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame
                          else kind,
                          "_order": (order.get((test, claim), 90) if test in TESTS else
                                     -1 if test == "headline table" else
-                                    98 if test.startswith("episode") else 95)})
+                                    98 if test.startswith("episode") else
+                                    96 if test.startswith("interaction") else 95)})
     have = {(r["test"], r["claim"]) for r in rows if r["comparison"] == "all"}
     for c in CHECKS:  # a rule no placebo could test
         if (c.test.name, c.claim) not in have:

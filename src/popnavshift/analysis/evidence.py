@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 
 from .delay import cell_metrics, paired_delays
+from .interaction import interaction_test
 from .nulls import CI_LEVEL, Design, null_test
 from .ranked import RANKED_NAMES
 from .resample import build_design, episode_weights, resampled_metrics
@@ -53,6 +54,11 @@ class Tested:
     #: (column ``baseline``: the other controller of the pair)
     pair_headline: pd.DataFrame = field(default_factory=pd.DataFrame)
     pair_null_rates: pd.DataFrame = field(default_factory=pd.DataFrame)
+    #: the interaction test (:mod:`.interaction`) per (comparison, metric), before its
+    #: family's verdicts (:func:`.interaction.interaction_verdicts`), and every null
+    #: replicate's statistic with its leave-one-out placebo
+    interaction: pd.DataFrame = field(default_factory=pd.DataFrame)
+    interaction_nulls: pd.DataFrame = field(default_factory=pd.DataFrame)
 
 
 def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
@@ -85,7 +91,8 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
     boot_excess: dict[tuple[str, str, str], np.ndarray] = {}
     frames: dict[str, list[pd.DataFrame]] = {k: [] for k in ("head", "null", "cross", "ord",
                                                            "rank", "placebo", "pair_head",
-                                                           "pair_null")}
+                                                           "pair_null", "inter",
+                                                           "inter_null")}
     for metric in metrics:
         boot = resampled_metrics(design, weights, (metric,))
         o = orderings(cells, design, boot, metric, level=level)
@@ -107,6 +114,10 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
                 frames["pair_null"].append(one_reps.assign(comparison=label, baseline=other))
             if rates_only:
                 continue
+            if null_pairs:
+                row, reps = interaction_test(o, obs_pairs, null_pairs)
+                frames["inter"].append(pd.DataFrame([row]).assign(comparison=label))
+                frames["inter_null"].append(reps.assign(comparison=label))
             frames["cross"].append(crossover_tests(o, _populations(obs_pairs), method=method,
                                                    alpha=alpha)
                                    .assign(comparison=label, metric=metric))
@@ -122,7 +133,8 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
         del boot, o
     cat = {k: pd.concat(v, ignore_index=True) if v else pd.DataFrame() for k, v in frames.items()}
     return Tested(cat["head"], cat["null"], cat["cross"], cat["ord"], cat["rank"],
-                  cat["placebo"], n_boot, level, boot_excess, cat["pair_head"], cat["pair_null"])
+                  cat["placebo"], n_boot, level, boot_excess, cat["pair_head"], cat["pair_null"],
+                  cat["inter"], cat["inter_null"])
 
 
 def _others(o: Orderings, controller: str | None) -> list[str]:

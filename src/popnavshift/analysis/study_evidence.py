@@ -8,6 +8,9 @@ on the main grid — and computes with :mod:`popnavshift.analysis` (pure functio
 * ``evidence_headline``: observed vs null rates per (comparison, metric, rule), the
   verdict with its deciding interval and test (:mod:`.verdicts`), the permutation p and the
   episode-only interval;
+* ``evidence_interaction``: do controller differences change with the population more than
+  under the null (:mod:`.interaction`), per (comparison, metric), decided as one family;
+  ``evidence_interaction_nulls``: every null replicate's statistic and its placebo;
 * ``evidence_null_rates``: every null replicate's rate;
 * ``evidence_calibration``: every verdict rule's false-positive rate on placebos drawn
   from those replicates (:mod:`.calibrate`), with ``evidence_placebo_crossovers``;
@@ -35,6 +38,7 @@ from ..read.folder import StudyFolder
 from ..tables import NO_ROBOT
 from .calibrate import calibration_table
 from .evidence import complete_design, test_comparisons
+from .interaction import interaction_placebos, interaction_verdicts
 from .nulls import (
     Design,
     burden_beyond_time,
@@ -109,6 +113,13 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
         add.update(_replicates(r, p, one, obs_pops, tested.headline, label=label, seed=seed,
                                rng_seed=rng_seed, level=level, missing=missing))
         boot_excess.update(tested.boot_excess)
+        if tested.interaction.empty:
+            lacks(missing, PREFIX + "interaction", f"the study ran no null of the {label} "
+                                                   "comparison")
+        else:
+            add["interaction"] = tested.interaction.assign(null=design.null, seed_sets=n_sets,
+                                                           variants_per_cell=3 * n_sets)
+            add["interaction_nulls"] = tested.interaction_nulls
         if head["n_null"].max() > 0:
             costs[label] = design_costs(r, obs_pops, design.nulls, study.manifest)
         else:
@@ -130,8 +141,8 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
 def _decided(tables: dict[str, pd.DataFrame], boot_excess: dict, costs: dict[str, Costs]
              ) -> dict[str, pd.DataFrame]:
     """The headline's verdicts with multiplicity control over its table, "burden beyond
-    robot time" with control over its own, the power advice at the headline's level, and
-    the calibration on placebos."""
+    robot time" with control over its own, the interaction test's over its own rows, the
+    power advice at the headline's level, and the calibration on placebos."""
     nulls = tables[PREFIX + "null_rates"]
     head = family_verdicts(tables[PREFIX + "headline"], nulls)
     comps = list(dict.fromkeys(head["comparison"]))
@@ -140,12 +151,19 @@ def _decided(tables: dict[str, pd.DataFrame], boot_excess: dict, costs: dict[str
     burden = [burden_beyond_time(head[head["comparison"] == c], nulls, boot_excess, burden=b,
                                  alpha=ALPHA / m)
               for c in comps for b in burden_metrics]
+    inter = tables.get(PREFIX + "interaction")
+    inter = interaction_verdicts(inter) if inter is not None and not inter.empty else None
+    inter_nulls = tables.get(PREFIX + "interaction_nulls")
     out = {PREFIX + "headline": head,
            PREFIX + "burden": pd.concat(burden, ignore_index=True).assign(family=m),
            PREFIX + "calibration": calibration_table(
                nulls, tables.get(PREFIX + "placebo_crossovers"),
                family=int(head.loc[head["rule"] == "raw", "family"].max()),
-               null_kinds=dict(zip(head["comparison"], head["null"], strict=True)))}
+               null_kinds=dict(zip(head["comparison"], head["null"], strict=True)),
+               interaction=None if inter is None or inter_nulls is None else
+               interaction_placebos(inter_nulls, int(inter["family"].max())))}
+    if inter is not None:
+        out[PREFIX + "interaction"] = inter
     curves = tables.get(PREFIX + "curve")
     power = []
     for c in comps:

@@ -70,11 +70,22 @@ def _calibration(p: Page, cal: pd.DataFrame) -> list[Block]:
              Cell(pct(r.rate), "strong"), f"[{pct(r.cp_low)}, {pct(r.cp_high)}]",
              Cell(r.status, "bad" if r.status == "above nominal" else
                   "ok" if r.status == "within" else "")] for r in c.itertuples()]
-    return [table(["Test", "Rule", "Claim", "Nominal", "Claims / placebos", "Rate",
-                   "95% CI", "Status"], rows,
-                  caption="Every verdict rule on the study's placebos: the headline "
-                  "table as a whole, then each test pooled over comparisons and metrics",
-                  csv="evidence_calibration")]
+    out = [table(["Test", "Rule", "Claim", "Nominal", "Claims / placebos", "Rate",
+                  "95% CI", "Status"], rows,
+                 caption="Every verdict rule on the study's placebos: the headline "
+                 "table as a whole, then each test pooled over comparisons and metrics",
+                 csv="evidence_calibration")]
+    inter = p.a.tables.get("evidence_interaction_nulls")
+    if inter is not None and not inter.empty:
+        out.append(table(["Comparison", "Metric", "Replicate", "T", "As a placebo: t",
+                          "p (one-sided)"],
+                         [[r.comparison, LABELS.get(r.metric, r.metric), int(r.replicate),
+                           fmt(r.T, "{:.3f}"), fmt(r.placebo_t), fmt(r.placebo_p_t, "{:.3f}")]
+                          for r in inter.itertuples()],
+                         caption="The interaction test's null replicates: each one's T, and "
+                         "the replicate taken as the observed against the others (its "
+                         "placebo)", csv="evidence_interaction_nulls", collapsed=True))
+    return out
 
 
 CALIBRATION = SectionSpec(

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..analysis.interaction import CHANGES
 from ..analysis.ranked import RANKED_METRICS, names
 from ..analysis.reversals import COMPARISONS
 from ..analysis.verdicts import (
@@ -118,6 +119,42 @@ def aspect_sentences(head: pd.DataFrame, metrics: tuple[str, ...], lead: str, n_
                  else _phrase(comp))
         parts.append(where[0].upper() + where[1:] + ", " + "; ".join(_clauses(rows)) + ".")
     return {"lead": f"{lead}: {_answer_word(raw)}.", "text": " ".join(parts)}
+
+
+def interaction_sentence(inter: pd.DataFrame | None) -> dict[str, str] | None:
+    """Whether controller differences change with the population more than under the null
+    (the interaction test, :mod:`popnavshift.analysis.interaction`), per comparison."""
+    if inter is None or inter.empty or "verdict" not in inter:
+        return None
+    rows = inter[inter["n_null"] >= 3]
+    if rows.empty:
+        return None
+    order = {m: i for i, m in enumerate((*BURDEN, *ROBOT))}
+    parts = []
+    for comp in [c for c in COMPARISONS if c in set(rows["comparison"])]:
+        c = rows[rows["comparison"] == comp].sort_values(
+            "metric", key=lambda m: m.map(lambda x: order.get(x, 99)))
+        bits = []
+        for changes, words in ((True, "change more than under the null"),
+                               (False, "are not shown to change more than under the null")):
+            sel = c[(c["verdict"] == CHANGES) == changes]
+            if sel.empty:
+                continue
+            figures = "; ".join(f"{LABELS.get(r.metric, r.metric)} t = {r.t:.1f}, adjusted "
+                                f"p = {r.p_adj:.2g}" for r in sel.itertuples())
+            bits.append(f"{join([LABELS.get(m, m) for m in sel['metric']])} differences "
+                        f"{words} ({figures})")
+        parts.append(f"{_phrase(comp)}, " + "; ".join(bits))
+    some = (rows["verdict"] == CHANGES).any()
+    m, alpha = int(rows["family"].max()), float(rows["alpha_row"].max())
+    return {"lead": "Controller differences change with the population: "
+                    + ("yes, beyond the null." if some else "not shown beyond the null."),
+            "text": "Whether the difference between two controllers changes from one "
+                    "population to the other more than between null replicates, over every "
+                    "cell and controller pair (a rank test of the standardized differences "
+                    f"against {int(rows['n_null'].min())} replicates, each of its {m} rows at "
+                    f"p ≤ {alpha:.3g}; not whether orderings cross): " + "; ".join(parts)
+                    + "."}
 
 
 def decided_sentence(head: pd.DataFrame) -> dict[str, str] | None:
@@ -256,6 +293,7 @@ def answer_sentences(tables: dict[str, pd.DataFrame]
                            "against what noise alone produces at the same design: its rates are "
                            "descriptive. The paper study runs them (`null_design` parts: "
                            "`popnavshift run`)."}]
+    answer.append(interaction_sentence(tables.get("evidence_interaction")))
     answer.append(order_sentence(ranks))
     support = [decided_sentence(head), crossover_sentence(tables.get("evidence_crossovers")),
                calibration_sentence(tables.get("evidence_calibration"))]

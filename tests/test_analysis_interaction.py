@@ -1,0 +1,120 @@
+"""The interaction test (analysis/interaction.py): by hand, on many draws of pure noise,
+and through the real analysis on synthetic studies where the truth is known."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from popnavshift.analysis.calibrate import calibration_table
+from popnavshift.analysis.evidence import test_comparisons as run_tests
+from popnavshift.analysis.interaction import (
+    CHANGES,
+    NOT_SHOWN,
+    interaction_placebos,
+    interaction_verdicts,
+    one_sided,
+    rank_statistic,
+)
+from popnavshift.analysis.nulls import headline_designs
+from popnavshift.analysis.verdicts import DESCRIPTIVE, clopper_pearson
+from popnavshift.populations.identity import MATCHED_PAIR
+from synth_study import design_specs, swap_study
+
+
+def test_the_rank_statistic_by_hand():
+    # 3 designs × 2 terms; term 2 is missing in design 3 (ranked among the other two)
+    z = np.array([[[3.0, -2.0]], [[1.0, 0.5]], [[-2.0, np.nan]]])
+    # term 1 |z| = 3, 1, 2 → ranks 3, 1, 2 → (r − 1)/2 = 1, 0, 0.5
+    # term 2 |z| = 2, 0.5 → ranks 2, 1 → (r − 1)/1 = 1, 0
+    assert rank_statistic(z) == pytest.approx([1.0, 0.0, 0.5])
+    # ties share their mid-rank; a term finite in one design only is left out
+    tied = np.array([[[1.0, 7.0]], [[-1.0, np.nan]], [[0.0, np.nan]]])
+    assert rank_statistic(tied) == pytest.approx([0.75, 0.75, 0.0])
+
+
+def test_the_one_sided_prediction_t_by_hand():
+    null = np.array([0.4, 0.5, 0.6, 0.5])
+    d = one_sided(0.8, null)
+    s = np.std(null, ddof=1) * np.sqrt(1 + 1 / 4)
+    assert d["t"] == pytest.approx((0.8 - 0.5) / s) and d["df"] == 3
+    assert d["p_value"] == pytest.approx(1 / 5)  # above every replicate
+    assert one_sided(0.2, null)["p_t"] > 0.5  # less than the null: no claim
+    assert np.isnan(one_sided(0.8, null[:2])["t"])  # too few replicates
+
+
+def test_on_pure_noise_the_test_claims_at_its_nominal_rate():
+    """2,000 designs of independent normal z (9 replicates, 300 terms): the one-sided
+    prediction t of the rank statistic claims at 5 % within its Clopper–Pearson interval."""
+    rng = np.random.default_rng(7)
+    n, claims, strict = 2000, 0, 0
+    for _ in range(n):
+        T = rank_statistic(rng.standard_normal((10, 100, 1, 3)))
+        p = one_sided(T[0], T[1:])["p_t"]
+        claims += p <= 0.05
+        strict += p <= 0.05 / 8
+    assert clopper_pearson(claims, n)[0] <= 0.05 and claims / n > 0.03  # not conservative
+    assert clopper_pearson(strict, n)[0] <= 0.05 / 8
+
+
+def test_the_family_decides_each_row_at_alpha_over_m():
+    t = pd.DataFrame({"comparison": ["matched"] * 3, "metric": ["a", "b", "c"],
+                      "p_t": [0.004, 0.01, np.nan], "n_null": [9, 9, 2]})
+    v = interaction_verdicts(t)
+    assert list(v["family"]) == [2, 2, 2] and v["alpha_row"].iloc[0] == pytest.approx(0.025)
+    assert list(v["verdict"]) == [CHANGES, CHANGES, DESCRIPTIVE]
+    assert v["p_adj"].iloc[:2].tolist() == pytest.approx([0.008, 0.02])
+    assert interaction_verdicts(t.assign(p_t=[0.03, 0.2, np.nan]))["verdict"].iloc[0] == NOT_SHOWN
+
+
+def matched(inject: float, seed: int, n_null: int = 9):
+    runs, peds = swap_study(n_null, inject=inject, seed=seed, n_cells=12, variants=4, n_peds=5)
+    designs = headline_designs(design_specs(runs, "swap"), list(MATCHED_PAIR))
+    t = run_tests(runs, peds, designs, list(MATCHED_PAIR), rng=np.random.default_rng(seed),
+                  n_boot=80, metrics=("mean_delay",))
+    return t
+
+
+def test_a_planted_interaction_is_claimed_and_pure_noise_is_not():
+    planted = matched(1.0, seed=3)
+    row = interaction_verdicts(planted.interaction).iloc[0]
+    assert row["n_null"] == 9 and row["terms"] > 0
+    assert row["verdict"] == CHANGES and row["p_value"] == pytest.approx(0.1)
+    noise = matched(0.0, seed=4)
+    assert interaction_verdicts(noise.interaction)["verdict"].iloc[0] == NOT_SHOWN
+    # every replicate is a placebo against the other 8, ranks recomputed among them
+    reps = noise.interaction_nulls
+    assert list(reps["replicate"]) == list(range(1, 10)) and reps["placebo_t"].notna().all()
+    assert (reps["placebo_p_t"] > 0.05 / 8).all()
+
+
+def test_the_calibration_counts_the_interaction_placebos_at_both_levels():
+    nulls = pd.DataFrame({"comparison": "matched", "metric": "mean_delay",
+                          "replicate": range(1, 11), "T": 0.5,
+                          "placebo_t": 0.0, "placebo_p_t": [0.001, 0.03] + [0.5] * 8})
+    p = interaction_placebos(nulls, family=8)
+    assert set(p["nominal"]) == {0.05 / 8, 0.05}
+    rates = nulls.assign(rule="raw", rate=0.1, reversals=1, comparable=10)
+    cal = calibration_table(rates[["comparison", "metric", "rule", "replicate", "rate",
+                                   "reversals", "comparable"]], interaction=p)
+    got = cal[(cal["comparison"] == "all") & cal["test"].str.startswith("interaction")]
+    assert list(got["claims"]) == [1, 2] and list(got["placebos"]) == [10, 10]
+    assert got["nominal"].tolist() == pytest.approx([0.05 / 8, 0.05])
+
+
+def test_the_plain_sentence_follows_the_interaction_verdicts():
+    """Change the verdicts and the words change; the sentence never says orderings cross."""
+    from popnavshift.report.plain import interaction_sentence
+
+    rows = pd.DataFrame({"comparison": ["matched", "matched", "all_pairs"],
+                         "metric": ["robot_time", "mean_delay", "mean_delay"],
+                         "t": [2.0, 6.4, 4.4], "p_t": [0.04, 1e-5, 2e-4], "n_null": 19})
+    s = interaction_sentence(interaction_verdicts(rows))
+    assert s is not None and s["lead"].endswith("yes, beyond the null.")
+    assert ("mean delay differences change more than under the null (mean delay t = 6.4"
+            in s["text"]) and "robot time differences are not shown to change more" in s["text"]
+    assert "not whether orderings cross" in s["text"] and "each of its 3 rows" in s["text"]
+    none = interaction_sentence(interaction_verdicts(rows.assign(p_t=0.5)))
+    assert none is not None and none["lead"].endswith("not shown beyond the null.")
+    assert interaction_sentence(interaction_verdicts(rows.assign(n_null=2))) is None
