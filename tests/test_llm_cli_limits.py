@@ -72,3 +72,11 @@ def test_verbose_never_passes_a_server_s_control_characters(personas):
     assert proc.returncode == 2
     assert "\x1b" not in proc.stderr and "\x07" not in proc.stderr
     assert "\\x1b]0;PWNED" in proc.stderr  # shown, as its codes
+
+
+def test_llm_options_with_the_rule_respondent_are_refused_not_dropped(tmp_path):
+    proc = cli("probe", "-o", str(tmp_path / "s"), "--respondent", "rule", "--extra-body",
+               '{"stream": true}', "--model-sha256", "abc", "--concurrency", "3")
+    assert_one_line_error(proc, "--respondent rule takes no LLM option")
+    assert "--extra-body" in proc.stderr and "--concurrency" in proc.stderr
+    assert not (tmp_path / "s" / "responses.parquet").exists()

@@ -52,6 +52,11 @@ def _respondent_options(api_key_env: str | None, **given: Any) -> dict[str, Any]
     return opts
 
 
+#: a respondent option's command-line flag where its name differs from the option's
+_FLAG = {"max_concurrency": "--concurrency", "max_consecutive_failures": "--max-failures",
+         "seed": "--respondent-seed"}
+
+
 def json_option(name: str, text: str | None) -> Any:
     """The JSON value of option ``name`` (None when not given); ConfigError naming it."""
     if text is None:
@@ -246,7 +251,13 @@ def probe(
         fingerprint=fingerprint,
     )
     if respondent == "rule":
-        opts = {k: v for k, v in opts.items() if k == "seed"}
+        llm_only = sorted(k for k in opts if k != "seed")
+        if llm_only:  # given on purpose, and ignored: say so rather than drop them
+            raise ConfigError(
+                "--respondent rule takes no LLM option; given: "
+                + ", ".join(_FLAG.get(k, "--" + k.replace("_", "-")) for k in llm_only),
+                hint="they apply to --respondent openai or gemini; the rule respondent "
+                "takes --respondent-seed")
     s = _settings(respondent=dict(name=respondent, options=opts, samples=samples),
                   matched_n=matched_n, seed=seed)
     started = time.perf_counter()
