@@ -49,11 +49,14 @@ def content_digest(path: str | os.PathLike[str]) -> str:
     return h.hexdigest()
 
 
-def sources_digest(*folders: str, suffixes: tuple[str, ...] = (".py", ".j2")) -> str:
+def sources_digest(*folders: str, suffixes: tuple[str, ...] = (".py", ".j2"),
+                   exclude: frozenset[str] = frozenset()) -> str:
     """Hex digest of the package's source files (``suffixes``) under ``folders`` (names
-    of its subpackages, e.g. ``"analysis"``): their relative names and contents. A stamp
-    of the code an output was made by; compiled caches are left out."""
+    of its subpackages, e.g. ``"analysis"``): their relative names and contents, but the
+    files named in ``exclude`` (paths relative to the package). A stamp of the code an
+    output was made by; compiled caches are left out."""
     package = Path(__file__).resolve().parent
     return digest([[p.relative_to(package).as_posix(), hashlib.sha256(p.read_bytes()).hexdigest()]
                    for sub in folders for p in sorted((package / sub).rglob("*"))
-                   if p.suffix in suffixes and p.is_file()])
+                   if p.suffix in suffixes and p.is_file()
+                   and p.relative_to(package).as_posix() not in exclude])

@@ -96,10 +96,17 @@ def check_card_settings(n_boot: object, seed: object, safety_threshold: object) 
                           f"{safety_threshold!r}")
 
 
+#: evaluation modules that put cards side by side and make none: a change to them never
+#: makes a card stale
+NOT_CARD_CODE = frozenset({"evaluate/compare.py", "evaluate/compare_page.py",
+                           "evaluate/leaderboard.py"})
+
+
 @cache
 def card_code() -> str:
-    """Stamp of the code that computes a card: the analysis and the evaluation."""
-    return digest([__version__, sources_digest("analysis", "evaluate")])
+    """Stamp of the code that computes a card: the analysis and the evaluation (but the
+    comparison pages, :data:`NOT_CARD_CODE`)."""
+    return digest([__version__, sources_digest("analysis", "evaluate", exclude=NOT_CARD_CODE)])
 
 
 def runs_digest(*folders: Path) -> str:

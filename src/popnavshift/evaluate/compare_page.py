@@ -248,9 +248,9 @@ def write_comparison(comparison: Comparison, page: Path) -> dict[str, Path]:
 _PAGE = """<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>{{ heading }}:
 {{ c.controllers | join(", ") }}</title>
-<style>body{font-family:sans-serif;margin:1.5em auto;max-width:1240px;padding:0 1em;
+<style>body{font-family:sans-serif;margin:1em auto;max-width:1264px;padding:0 .5em;
 font-size:14px}table{border-collapse:collapse;margin:.4em 0;font-size:11px}
-td,th{border:1px solid #ccc;padding:2px 4px}td{text-align:right;white-space:nowrap}
+td,th{border:1px solid #ccc;padding:2px 3px}td{text-align:right;white-space:nowrap}
 td.l,th{text-align:left}.small{color:#555;font-size:12px}.wrap{overflow-x:auto;max-width:100%}
 .population-sensitive,.unsafe,.fails-every-run{color:#b00;font-weight:bold}
 .robust,.safe{color:#2a7a2a;font-weight:bold}.undecided{color:#a60}
