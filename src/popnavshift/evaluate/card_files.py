@@ -24,14 +24,11 @@ from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import pandas as pd
-
 from ..controller_ids import controller_id, parse_controller_id
 from ..errors import ConfigError
 from ..hashing import digest, sources_digest
 from ..outputs import check_writable
 from ..read.access import CARD, EVALUATE_DIR, EVALUATION, card_intact
-from ..tables import RUN_KEY
 from ..version import __version__
 
 if TYPE_CHECKING:
@@ -110,19 +107,21 @@ def card_code() -> str:
 
 
 def runs_digest(*folders: Path) -> str:
-    """Hex sha256 of the runs a card can read: the keys and ``run_inputs`` (the digest of
-    each run's own inputs and code, :mod:`popnavshift.engine.run_inputs`) of the study
-    folder's runs and the card's own, as stored. Equal digests, equal runs and pedestrians
-    (a run is a function of its inputs); read from two columns, so a current card is
-    recognised without loading its tables."""
+    """Hex sha256 of the runs a card can read: the bytes of the study folder's
+    ``runs.parquet`` and the card's own. A run's row holds ``run_inputs``, the digest of its
+    own inputs and code (:mod:`popnavshift.engine.run_inputs`), and its outcome, so equal
+    files mean equal runs and pedestrians; a table written again with the same rows is
+    written byte for byte the same. Hashing the file, not its parsed columns, recognises a
+    current card in a few milliseconds (a change of bytes alone would only make the card
+    again)."""
     h = hashlib.sha256()
     for folder in folders:
         path = Path(folder) / "runs.parquet"
         if not path.is_file():
             h.update(b"-\0")
             continue
-        keys = pd.read_parquet(path, columns=[*RUN_KEY, "run_inputs"])
-        h.update(pd.util.hash_pandas_object(keys, index=False).to_numpy().tobytes())
+        with path.open("rb") as f:
+            h.update(hashlib.file_digest(f, "sha256").digest())
     return h.hexdigest()
 
 
