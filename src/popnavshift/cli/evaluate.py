@@ -32,6 +32,12 @@ SafetyThreshold = Annotated[
                  "every one is below it: the same rule for every controller (default: 0.01, "
                  "1% of its runs)."),
 ]
+#: Options shared by compare and leaderboard (every card is made under them)
+Workers = Annotated[int, typer.Option("--workers", "-w", min=1, max=MAX_WORKERS,
+                                      help="Worker processes.")]
+CardsBoot = Annotated[int, typer.Option(min=1, max=100_000,
+                                        help="Bootstrap resamples of the cards.")]
+CardsSeed = Annotated[int, typer.Option(min=0, help="Seed of the cards' bootstrap.")]
 #: The study a controller is evaluated against (shared by evaluate and compare).
 BaselineStudy = Annotated[
     str | None,
@@ -156,12 +162,9 @@ def compare(
         typer.Option("--out", "-o", help="The page, FILE.html; FILE.csv, .md, .tex and .png "
                      "go beside it (default: STUDY_DIR/compare/compare.html)."),
     ] = None,
-    workers: Annotated[
-        int, typer.Option("--workers", "-w", min=1, max=MAX_WORKERS, help="Worker processes.")
-    ] = 2,
-    n_boot: Annotated[int, typer.Option(min=1, max=100_000,
-                                        help="Bootstrap resamples of the cards.")] = 1000,
-    seed: Annotated[int, typer.Option(min=0, help="Seed of the cards' bootstrap.")] = 0,
+    workers: Workers = 2,
+    n_boot: CardsBoot = 1000,
+    seed: CardsSeed = 0,
     safety_threshold: SafetyThreshold = None,
     baselines: Annotated[
         str | None,
@@ -203,12 +206,9 @@ def leaderboard(
         Path | None,
         typer.Option("--out", "-o", help="The page, FILE.html; FILE.csv, .md, .tex and .png "
                      "go beside it (default: STUDY_DIR/leaderboard/leaderboard.html).")] = None,
-    workers: Annotated[
-        int, typer.Option("--workers", "-w", min=1, max=MAX_WORKERS, help="Worker processes.")
-    ] = 2,
-    n_boot: Annotated[int, typer.Option(min=1, max=100_000,
-                                        help="Bootstrap resamples of the cards.")] = 1000,
-    seed: Annotated[int, typer.Option(min=0, help="Seed of the cards' bootstrap.")] = 0,
+    workers: Workers = 2,
+    n_boot: CardsBoot = 1000,
+    seed: CardsSeed = 0,
     safety_threshold: SafetyThreshold = None,
     replicates: Replicates = None,
     seed_sets: SeedSets = None,
