@@ -45,7 +45,7 @@ def quick(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess,
     would, without its report), evaluates and cards every row (navground's behaviours
     simulated); then compare reads four of those cards."""
     root = tmp_path_factory.mktemp("compare")
-    opts = ("--study-dir", "study-quick", "--n-boot", "100")
+    opts = ("--study-dir", "study-quick", "--n-boot", "30")
     first = cli("leaderboard", *opts, cwd=root)
     second = cli("compare", *FOUR, *opts, cwd=root)
     return root / "study-quick", first, second
@@ -60,7 +60,7 @@ def test_the_leaderboard_has_every_behaviour_once_with_two_verdicts_each(quick):
     assert sorted(p.name for p in out.iterdir()) == [
         f"leaderboard.{x}" for x in ("csv", "html", "json", "md", "png", "tex")]
     manifest = json.loads((out / "leaderboard.json").read_text())
-    assert manifest["controllers"] == list(BOARD) and manifest["settings"]["n_boot"] == 100
+    assert manifest["controllers"] == list(BOARD) and manifest["settings"]["n_boot"] == 30
     assert manifest["what"] == "leaderboard" and manifest["made"] and manifest["config_hash"]
     table = pd.read_csv(out / "leaderboard.csv")
     assert list(table["controller"]) == list(BOARD)  # no '' and no PyDummy
@@ -114,11 +114,11 @@ def test_a_compare_after_it_reads_the_cards_and_simulates_nothing(quick):
 @pytest.mark.slow  # reads the quick study's cards
 def test_a_current_card_is_reused_without_running_anything(quick):
     folder = quick[0]
-    proc = cli("evaluate", "HRVO", "--study-dir", "study-quick", "--n-boot", "100",
+    proc = cli("evaluate", "HRVO", "--study-dir", "study-quick", "--n-boot", "30",
                cwd=folder.parent)
     assert proc.returncode == 0, proc.stderr
     assert "card is current, reused" in proc.stderr and "runs reused" not in proc.stderr
-    proc = cli("evaluate", "HRVO", "--study-dir", "study-quick", "--n-boot", "99",
+    proc = cli("evaluate", "HRVO", "--study-dir", "study-quick", "--n-boot", "29",
                cwd=folder.parent)  # another rule: made again, on the same runs
     assert proc.returncode == 0 and "card is current" not in proc.stderr, proc.stderr
 
