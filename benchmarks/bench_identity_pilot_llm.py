@@ -28,7 +28,6 @@ import json
 import os
 import re
 import shutil
-import socket
 import subprocess
 import sys
 import tempfile
@@ -36,42 +35,21 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-import httpx
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import bench_audit_llm as audit_bench  # noqa: E402  (the llama-server it starts)
 
 POPNAVSHIFT = [sys.executable, "-m", "popnavshift"]
 ALIAS = "smollm2-135m-instruct"
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 @contextlib.contextmanager
 def llama_server(binary: str, gguf: Path, port: int, ctx: int, slots: int,
                  log: Path) -> Iterator[str]:
-    """``llama-server`` on ``port`` (one thread: see bench_audit_llm.py); its ``/v1`` URL."""
-    cmd = [binary, "-m", str(gguf), "--host", "127.0.0.1", "--port", str(port), "--alias",
-           ALIAS, "-c", str(ctx), "-np", str(slots), "--threads", "1"]
-    with open(log, "ab") as out:
-        proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT)
-        try:
-            url = f"http://127.0.0.1:{port}"
-            deadline = time.monotonic() + 180
-            while time.monotonic() < deadline:
-                if proc.poll() is not None:
-                    raise SystemExit(f"llama-server exited with {proc.returncode}; see {log}")
-                with contextlib.suppress(httpx.HTTPError):
-                    if httpx.get(f"{url}/health", timeout=2).status_code == 200:
-                        break
-                time.sleep(0.5)
-            else:
-                raise SystemExit(f"llama-server not ready after 180 s; see {log}")
-            yield f"{url}/v1"
-        finally:
-            proc.terminate()
-            proc.wait(timeout=30)
+    """``llama-server`` on ``port`` with ``ctx`` and ``slots`` (bench_audit_llm.py's, one
+    thread); its ``/v1`` URL."""
+    with audit_bench.llama_server(binary, gguf, ALIAS, log, port=port, ctx=ctx, slots=slots,
+                                  ready_s=180) as url:
+        yield url
 
 
 def changed_weights(gguf: Path, target: Path) -> list[str]:
@@ -122,7 +100,7 @@ def main() -> None:
     args = ap.parse_args()
     out = args.out or Path(tempfile.mkdtemp(prefix="bench-identity-"))
     out.mkdir(parents=True, exist_ok=True)
-    folder, log, port = out / "study", out / "llama-server.log", free_port()
+    folder, log, port = out / "study", out / "llama-server.log", audit_bench.free_port()
     summary = out / "identity_pilot.json"
     subprocess.run([*POPNAVSHIFT, "personas", "--n", str(args.personas), "--out",
                     str(folder)], check=True, capture_output=True)
