@@ -141,7 +141,7 @@ def null_study(tmp_path_factory):
     out = run_with(root, f"""
 import json
 from pathlib import Path
-from popnavshift.cli.study import calibrate
+from popnavshift.cli.calibrate import calibrate
 from popnavshift.engine.runner import run_study
 from popnavshift.cli.app import stdout
 from popnavshift.design.study import load_study, study_from_dict

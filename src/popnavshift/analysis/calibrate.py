@@ -32,6 +32,11 @@ rule makes on a placebo is a false positive. Per rule and claim:
   replicate indices, so there are few: it is the check of what the report's first
   paragraph claims together.
 
+*At the study's own design* (``null_size``: ``popnavshift calibrate --replicates N`` runs
+more replicates than the study judges against): placebo j is judged against the
+``null_size`` replicates after it, cyclically (j + 1, …, j + ``null_size`` mod N), not all
+N − 1 others — the rule as the study deploys it, on N placebos instead of P.
+
 Each rate has its exact (Clopper–Pearson) 95 % interval. ``within``: its lower end is at
 or below the nominal level (the data are consistent with a calibrated rule); ``status``:
 *within* when, besides, its upper end is at most twice the nominal level, *above nominal*
@@ -126,22 +131,36 @@ FAMILY_EFFECT = "any rate above or below the null"
 FAMILY_SMALL = "any 'no excess ≥ 5 pp', at +5 pp"
 
 
-def placebos(null_rates: pd.DataFrame) -> pd.DataFrame:
+def placebo_nulls(n: int, j: int, size: int | None = None) -> np.ndarray:
+    """The positions of the replicates placebo ``j`` of ``n`` is judged against: every other
+    one (leave-one-out), or, with ``size`` < n − 1, the ``size`` after it cyclically — the
+    study's own design on more placebos (module doc)."""
+    if size is None or size >= n - 1:
+        return np.delete(np.arange(n), j)
+    return (j + 1 + np.arange(size)) % n
+
+
+def placebos(null_rates: pd.DataFrame, null_sizes: Mapping[str, int] | None = None
+             ) -> pd.DataFrame:
     """Every (check, comparison, metric, replicate) placebo of ``null_rates`` (one row per
     null replicate and rule: ``comparison, metric, rule, replicate, rate``) with whether the
-    check's claim was made (``claim_made``)."""
+    check's claim was made (``claim_made``); ``null_sizes``: the replicates each
+    comparison's placebo is judged against (:func:`placebo_nulls`; default all others)."""
     rows = []
     for (comp, metric, rule), g in null_rates.groupby(["comparison", "metric", "rule"],
                                                       sort=False):
         rates = g["rate"].to_numpy(float)
+        size = (null_sizes or {}).get(comp)
         for check in CHECKS:
-            if check.rule != rule or len(rates) - 1 < check.test.min_nulls:
+            if check.rule != rule or min(len(rates) - 1, size or len(rates)) < \
+                    check.test.min_nulls:
                 continue  # with so few other replicates the rule can never claim anything
             for j in range(len(rates)):
                 if not np.isfinite(rates[j]):
                     continue
-                d = check.test.decide(rates[j] + check.shift, np.delete(rates, j),
-                                      floor=_floor_without(g, j))
+                rest = placebo_nulls(len(rates), j, size)
+                d = check.test.decide(rates[j] + check.shift, rates[rest],
+                                      floor=_floor_of(g, rest))
                 rows.append({"comparison": comp, "metric": metric, "test": check.test.name,
                              "rule": rule, "claim": check.claim,
                              "replicate": int(g["replicate"].iloc[j]),
@@ -149,22 +168,22 @@ def placebos(null_rates: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _floor_without(g: pd.DataFrame, j: int) -> float:
-    """The binomial floor (:func:`.verdicts.binomial_floor`) of replicates ``g`` but row j."""
+def _floor_of(g: pd.DataFrame, rows: np.ndarray) -> float:
+    """The binomial floor (:func:`.verdicts.binomial_floor`) of replicates ``g``'s ``rows``."""
     if "comparable" not in g:
         return 0.0
-    return binomial_floor(np.delete(g["reversals"].to_numpy(float), j),
-                          np.delete(g["comparable"].to_numpy(float), j))
+    return binomial_floor(g["reversals"].to_numpy(float)[rows],
+                          g["comparable"].to_numpy(float)[rows])
 
 
-def family_placebos(null_rates: pd.DataFrame, family: int, *, alpha: float = ALPHA
-                    ) -> pd.DataFrame:
+def family_placebos(null_rates: pd.DataFrame, family: int, *, alpha: float = ALPHA,
+                    null_sizes: Mapping[str, int] | None = None) -> pd.DataFrame:
     """The headline table as the report decides it, on placebos: replicate j of every
     comparison taken as the observed (against that comparison's other replicates), every
     raw rate of the table decided at ``alpha``/``family`` (:func:`.nulls.family_verdicts`).
     One row per j with whether any rate was called above or below the null (false: the
     truth is no effect), and, on the placebo shifted up by 5 pp, whether any was called
-    *no excess ≥ 5 pp* (false: the truth is +5 pp)."""
+    *no excess ≥ 5 pp* (false: the truth is +5 pp). ``null_sizes``: as :func:`placebos`."""
     raw = null_rates[null_rates["rule"] == "raw"]
     tables = {k: g.set_index("replicate") for k, g in
               raw.groupby(["comparison", "metric"], sort=False)}
@@ -173,13 +192,15 @@ def family_placebos(null_rates: pd.DataFrame, family: int, *, alpha: float = ALP
         return pd.DataFrame()
     common = sorted(set.intersection(*(set(g.index) for g in groups.values())))
     rows = []
-    for j in common:
+    for pos, j in enumerate(common):
         effect = small = False
         for key, g in groups.items():
-            rest = g.drop(index=j).to_numpy(float)
+            keep = [common[i] for i in placebo_nulls(len(common), pos,
+                                                     (null_sizes or {}).get(key[0]))]
+            rest = g.loc[keep].to_numpy(float)
             if len(rest) < MIN_NULLS_T or not np.isfinite(g[j]):
                 continue
-            others = tables[key].drop(index=j)
+            others = tables[key].loc[keep]
             floor = (binomial_floor(others["reversals"], others["comparable"])
                      if "comparable" in others else 0.0)
             effect |= prediction_test(g[j], rest, alpha=alpha / family,
@@ -206,7 +227,8 @@ def status(low: float, high: float, nominal: float) -> str:
 
 def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame | None = None,
                       *, family: int = 0, null_kinds: Mapping[str, str] | None = None,
-                      interaction: pd.DataFrame | None = None) -> pd.DataFrame:
+                      interaction: pd.DataFrame | None = None,
+                      null_sizes: Mapping[str, int] | None = None) -> pd.DataFrame:
     """Per comparison (and ``all`` pooled) and check: placebos, claims, the claim rate with
     its Clopper–Pearson 95 % interval, the nominal level, ``within`` (the interval's lower
     end at or below it; NaN for power rows) and ``status`` (:func:`status`). Rows follow
@@ -216,12 +238,13 @@ def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame
     comparison's kind of :data:`NULL_KINDS`, which names its claim), the interaction test
     (``interaction``: its leave-one-out placebos, each claim with its own ``nominal``,
     :func:`.interaction.interaction_placebos`) and the episode-only interval (a
-    diagnostic)."""
+    diagnostic). ``null_sizes``: per comparison, the replicates a placebo is judged against
+    (the study's own design on more placebos, :func:`placebo_nulls`; default all others)."""
     if null_rates is None or null_rates.empty:
         return pd.DataFrame(columns=COLUMNS)
-    p = placebos(null_rates)
+    p = placebos(null_rates, null_sizes)
     frames = [] if p.empty else [p]
-    fam = family_placebos(null_rates, family)
+    fam = family_placebos(null_rates, family, null_sizes=null_sizes)
     if not fam.empty:
         frames.append(fam)
     if placebo_crossovers is not None and not placebo_crossovers.empty:

@@ -67,7 +67,9 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
                      alpha: float = ALPHA, method: str = "holm",
                      metrics: Sequence[str] = RANKED_NAMES,
                      ci_level: float = CI_LEVEL, rates_only: bool = False,
-                     controller: str | None = None) -> Tested:
+                     controller: str | None = None,
+                     null_sizes: dict[str, int] | None = None,
+                     interaction: bool = True) -> Tested:
     """Every comparison design of ``designs`` tested on ``runs`` (see the module doc).
 
     Args:
@@ -83,6 +85,10 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
       controller: count only the orderings of this controller against the others (a
         card: never the others' among themselves), pooled and, in ``pair_headline`` and
         ``pair_null_rates``, pair by pair.
+      null_sizes: per design label, the replicates each interaction placebo is judged
+        against (the study's own design on more placebos; default all others).
+      interaction: run the interaction test (:mod:`.interaction`), with ``rates_only`` too
+        (a card's second question); False leaves ``interaction`` empty.
     """
     paired = paired_delays(pedestrians)
     cells = cell_metrics(runs, paired)
@@ -112,12 +118,13 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
                 frames["pair_head"].append(pd.DataFrame(one).drop(columns="boot_excess")
                                            .assign(comparison=label, baseline=other))
                 frames["pair_null"].append(one_reps.assign(comparison=label, baseline=other))
-            if rates_only:
-                continue
-            if null_pairs:
-                row, reps = interaction_test(o, obs_pairs, null_pairs)
+            if null_pairs and interaction:
+                row, reps = interaction_test(o, obs_pairs, null_pairs,
+                                             null_size=(null_sizes or {}).get(label))
                 frames["inter"].append(pd.DataFrame([row]).assign(comparison=label))
                 frames["inter_null"].append(reps.assign(comparison=label))
+            if rates_only:
+                continue
             frames["cross"].append(crossover_tests(o, _populations(obs_pairs), method=method,
                                                    alpha=alpha)
                                    .assign(comparison=label, metric=metric))

@@ -40,6 +40,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from .calibrate import placebo_nulls
 from .significance import Orderings
 from .verdicts import ALPHA, DESCRIPTIVE, MIN_NULLS_T, permutation_p
 
@@ -108,12 +109,16 @@ def one_sided(t0: float, null: np.ndarray) -> dict:
 
 
 def interaction_test(o: Orderings, observed: Sequence[tuple[str, str]],
-                     nulls: Sequence[Sequence[tuple[str, str]]]) -> tuple[dict, pd.DataFrame]:
+                     nulls: Sequence[Sequence[tuple[str, str]]], *,
+                     null_size: int | None = None) -> tuple[dict, pd.DataFrame]:
     """The interaction test of one metric's orderings ``o``: the observed pairs against
     the null replicates' pairs (module doc). Returns the observed row (``metric``,
     ``statistic``, ``T``, ``terms``, :func:`one_sided`'s fields) and one row per replicate:
     its ``T`` among all designs and, as a placebo against the other replicates (ranks
-    recomputed among the replicates), ``placebo_t`` and ``placebo_p_t``."""
+    recomputed among the replicates), ``placebo_t`` and ``placebo_p_t``; with
+    ``null_size``, against the ``null_size`` replicates after it, cyclically (the study's
+    own design on more placebos: :func:`.calibrate.placebo_nulls`), ranks among those."""
+
     z = interaction_z(o, [list(observed), *map(list, nulls)])
     T = rank_statistic(z)
     terms = int(np.isfinite(z[0]).sum())
@@ -123,7 +128,12 @@ def interaction_test(o: Orderings, observed: Sequence[tuple[str, str]],
     if len(nulls) >= 2:
         placebo = rank_statistic(z[1:])
         for j in range(len(nulls)):
-            d = one_sided(float(placebo[j]), np.delete(placebo, j))
+            rest = placebo_nulls(len(nulls), j, null_size)
+            if len(rest) == len(nulls) - 1:
+                d = one_sided(float(placebo[j]), placebo[rest])
+            else:  # ranks among the placebo and its own null only
+                own = rank_statistic(z[1:][[j, *rest]])
+                d = one_sided(float(own[0]), own[1:])
             reps.append({"metric": o.metric, "replicate": j + 1, "T": float(T[j + 1]),
                          "placebo_t": d["t"], "placebo_p_t": d["p_t"]})
     cols = ["metric", "replicate", "T", "placebo_t", "placebo_p_t"]

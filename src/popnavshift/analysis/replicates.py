@@ -66,7 +66,8 @@ def replicate_curve(runs: pd.DataFrame, pedestrians: pd.DataFrame,
         tested = test_comparisons(runs[run_sets.isin(use).to_numpy()],
                                   pedestrians[ped_sets.isin(use).to_numpy()], designs, observed,
                                   rng=np.random.default_rng([seed, k]), n_boot=n_boot,
-                                  level=level, metrics=metrics, rates_only=True)
+                                  level=level, metrics=metrics, rates_only=True,
+                                  interaction=False)
         frames.append(tested.headline.assign(seed_sets=k,
                                              variants_per_cell=VARIANTS_PER_SEED_SET * k))
     return pd.concat(frames, ignore_index=True)

@@ -64,9 +64,12 @@ def lacks(missing: dict[str, str], table: str, why: str) -> None:
 
 
 def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000,
-                    level: float = LEVEL) -> tuple[dict[str, pd.DataFrame], dict[str, str]]:
+                    level: float = LEVEL, null_sizes: dict[str, int] | None = None
+                    ) -> tuple[dict[str, pd.DataFrame], dict[str, str]]:
     """Every evidence table of the study (see the module doc) and why any is missing (by the
-    table's name)."""
+    table's name). ``null_sizes``: per null kind (``swap``, ``sized``), the replicates each
+    placebo of the calibration is judged against (``calibrate --replicates``: the design of
+    the study that was extended; :func:`.calibrate.placebo_nulls`)."""
     main = study.main_part()
     if main is None:
         return {}, {HEADLINE: "the study has no main part (name one `main` or declare "
@@ -83,6 +86,8 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
     designs = headline_designs(present, observed)
     if not designs:
         return {}, {HEADLINE: "the study has neither the matched pair nor two populations"}
+    sizes = {label: null_sizes[d.null] for label, d in designs.items()
+             if null_sizes and d.null in null_sizes}
     seed = 0 if study.seed is None else int(study.seed)
     frames: dict[str, list[pd.DataFrame]] = {}
     missing: dict[str, str] = {}
@@ -101,7 +106,7 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
         obs_pops = list(dict.fromkeys(x for pair in design.observed for x in pair))
         one = {label: design}
         tested = test_comparisons(r, p, one, obs_pops, rng=np.random.default_rng([rng_seed, i]),
-                                  n_boot=n_boot, level=level)
+                                  n_boot=n_boot, level=level, null_sizes=sizes)
         n_sets = int(seed_sets(r).nunique())
         head = tested.headline.assign(null=design.null,
                                       seed_sets=n_sets, variants_per_cell=3 * n_sets)
@@ -134,12 +139,12 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
             frames.setdefault(k, []).append(v)
     tables = {PREFIX + k: pd.concat(v, ignore_index=True) for k, v in frames.items()}
     if PREFIX + "headline" in tables:
-        tables.update(_decided(tables, boot_excess, costs))
+        tables.update(_decided(tables, boot_excess, costs, sizes))
     return tables, missing
 
 
-def _decided(tables: dict[str, pd.DataFrame], boot_excess: dict, costs: dict[str, Costs]
-             ) -> dict[str, pd.DataFrame]:
+def _decided(tables: dict[str, pd.DataFrame], boot_excess: dict, costs: dict[str, Costs],
+             null_sizes: dict[str, int] | None = None) -> dict[str, pd.DataFrame]:
     """The headline's verdicts with multiplicity control over its table, "burden beyond
     robot time" with control over its own, the interaction test's over its own rows, the
     power advice at the headline's level, and the calibration on placebos."""
@@ -161,7 +166,8 @@ def _decided(tables: dict[str, pd.DataFrame], boot_excess: dict, costs: dict[str
                family=int(head.loc[head["rule"] == "raw", "family"].max()),
                null_kinds=dict(zip(head["comparison"], head["null"], strict=True)),
                interaction=None if inter is None or inter_nulls is None else
-               interaction_placebos(inter_nulls, int(inter["family"].max())))}
+               interaction_placebos(inter_nulls, int(inter["family"].max())),
+               null_sizes=null_sizes)}
     if inter is not None:
         out[PREFIX + "interaction"] = inter
     curves = tables.get(PREFIX + "curve")

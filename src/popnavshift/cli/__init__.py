@@ -8,7 +8,7 @@ the user or a server is escaped before rich renders it (control characters as th
 codes, :func:`.app.printable`), and redacted
 (:mod:`popnavshift.redact`). Everything else is a bug and shows a traceback.
 Commands live in :mod:`.population` (personas → populations), :mod:`.simulation`
-(episodes, simulate, replay, bench), :mod:`.plan`, :mod:`.study` (calibrate, run, report),
+(episodes, simulate, replay, bench), :mod:`.plan`, :mod:`.study` (run, report), :mod:`.calibrate`,
 :mod:`.evaluate` (evaluate, compare), :mod:`.data` (show-prompt, describe) and :mod:`.audit`
 (the respondent audit). Those modules import only typer, rich and the first layer at their
 top, and each command what it needs when it runs, so that ``--help``, ``--version`` and a
@@ -28,6 +28,7 @@ from ..errors import PopNavShiftError
 from ..progress import console
 from . import (  # noqa: F401  (register the commands)
     audit,
+    calibrate,
     data,
     evaluate,
     plan,

@@ -91,7 +91,8 @@ class Card:
                 "gaps": self.gaps, "robustness": rob.headline,
                 "robustness_by_baseline": rob.by_baseline,
                 "robustness_null_rates": rob.null_rates,
-                "robustness_calibration": rob.calibration, "ranks": self.evidence.ranks,
+                "robustness_calibration": rob.calibration,
+                "robustness_interaction": rob.interaction, "ranks": self.evidence.ranks,
                 "wins": self.evidence.wins, "crossovers": self.evidence.crossovers,
                 "safety_rates": self.safety_rates,
                 "safety_differences": self.safety_differences, "errors": self.errors}

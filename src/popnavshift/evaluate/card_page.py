@@ -276,7 +276,9 @@ new runs. PopNavShift {{ meta.version }}, study configuration {{ meta.config_has
 made {{ meta.made }}.</p>
 <div class="verdicts"><div class="verdict {{ verdict.robustness | replace(' ', '-') }}">
 <b>Robustness: {{ verdict.robustness }}.</b> {{ verdict.robustness_text }}
-{% if verdict.decide %}<br><b>What would decide it:</b> {{ verdict.decide }}{% endif %}</div>
+{% if verdict.decide %}<br><b>What would decide it:</b> {{ verdict.decide }}{% endif %}
+{% if verdict.interaction %}<br><b>Its differences from the baselines:</b>
+{{ verdict.interaction }}{% endif %}</div>
 <div class="verdict {{ verdict.safety.label }}"><b>Safety: {{ verdict.safety.label }}.</b>
 {{ verdict.safety.text }}</div></div>
 <h2>Robustness: how often its orderings reverse with the population, beside its own null</h2>

@@ -151,9 +151,19 @@ def verdict_columns(verdicts: dict[str, dict[str, Any]],
                      "excess_pp": 100 * row["excess"] if row else np.nan,
                      "excess_low_pp": 100 * row["ci_low"] if row else np.nan,
                      "excess_high_pp": 100 * row["ci_high"] if row else np.nan,
+                     # the second question: rows whose differences from the baselines
+                     # change beyond the null, of the rows tested
+                     "differences_change": _of(rob.get("interaction_rows")),
                      "safety": safe["label"], "safety_findings": len(safe["findings"]),
                      "safety_text": " / ".join(safe["findings"])})
     return pd.DataFrame(rows).set_index("controller")
+
+
+def _of(counts: Any) -> str:
+    """``2 of 10``: a card's interaction rows that change, of those tested ("" if none)."""
+    if not counts or not counts[1]:
+        return ""
+    return f"{int(counts[0])} of {int(counts[1])}"
 
 
 # ------------------------------------------------------------------ files and runs

@@ -15,6 +15,12 @@ permutation p (:mod:`popnavshift.analysis.verdicts`); every rate of the card's t
 decided at α/m (Bonferroni over its m rates per rule,
 :func:`popnavshift.analysis.nulls.family_verdicts`), so its claims hold together.
 
+Its second question, as the study's (:mod:`popnavshift.analysis.interaction`): do the
+controller's differences from the baselines change with the population more than under its
+null runs — the rankz interaction test on the controller's pairs only, per design and
+metric, one-sided, decided over the card's interaction rows (α/m), with its leave-one-out
+placebos in the card's calibration. It says nothing of orderings crossing; the label does.
+
 The card's label, from the raw rule (whose rates the power advice and the calibration
 measure): **population-sensitive** when some (design, baseline, metric) rate is above
 its null (the rows that carry it are named); **robust** when every rate's simultaneous
@@ -34,6 +40,7 @@ import pandas as pd
 
 from ..analysis.calibrate import calibration_table
 from ..analysis.evidence import complete_design, test_comparisons
+from ..analysis.interaction import CHANGES, interaction_placebos, interaction_verdicts
 from ..analysis.nulls import design_populations, family_verdicts, headline_designs
 from ..analysis.ranked import RANKED_METRICS
 from ..analysis.replicates import seed_sets
@@ -68,6 +75,10 @@ class Robustness:
     missing: dict[str, str]
     #: the raw-rule row that carries the label (:func:`deciding_row`), empty without one
     row: dict = field(default_factory=dict)
+    #: the interaction test per design and metric, decided over its rows (module doc)
+    interaction: pd.DataFrame = field(default_factory=pd.DataFrame)
+    #: the second question's answer in one sentence
+    interaction_text: str = ""
 
 
 def robustness_tables(runs: pd.DataFrame, peds: pd.DataFrame, controller: str,
@@ -82,7 +93,8 @@ def robustness_tables(runs: pd.DataFrame, peds: pd.DataFrame, controller: str,
     designs = headline_designs(present, [p for p in observed if p in conditions])
     keep = [controller, *baselines, NO_ROBOT]
     runs, peds = runs[runs["controller"].isin(keep)], peds[peds["controller"].isin(keep)]
-    frames: dict[str, list[pd.DataFrame]] = {"head": [], "null": [], "pair": [], "pair_null": []}
+    frames: dict[str, list[pd.DataFrame]] = {"head": [], "null": [], "pair": [], "pair_null": [],
+                                             "inter": [], "inter_null": []}
     missing: dict[str, str] = {}
     for i, (label, design) in enumerate(designs.items()):
         if not design.nulls:
@@ -107,6 +119,9 @@ def robustness_tables(runs: pd.DataFrame, peds: pd.DataFrame, controller: str,
         pn = tested.pair_null_rates
         frames["pair_null"].append(pn.assign(
             design=label, comparison=pn["comparison"] + " vs " + pn["baseline"]))
+        if not tested.interaction.empty:
+            frames["inter"].append(tested.interaction.assign(design=label, **extra))
+            frames["inter_null"].append(tested.interaction_nulls)
     if not frames["head"]:
         empty = pd.DataFrame(columns=COLUMNS)
         return Robustness(empty, pd.DataFrame(), empty, pd.DataFrame(), UNDECIDED_LABEL,
@@ -114,15 +129,44 @@ def robustness_tables(runs: pd.DataFrame, peds: pd.DataFrame, controller: str,
                           + ". A study with null parts decides it: the paper study (`make "
                           "run`, then evaluate without --study).",
                           missing)
-    cat = {k: pd.concat(v, ignore_index=True) for k, v in frames.items()}
+    cat = {k: pd.concat(v, ignore_index=True) if v else pd.DataFrame()
+           for k, v in frames.items()}
     head = family_verdicts(cat["head"], cat["null"])
     by_baseline = family_verdicts(cat["pair"], cat["pair_null"])
     family = int(head.loc[head["rule"] == "raw", "family"].max())
-    calibration = calibration_table(cat["null"], family=family)
+    inter = interaction_verdicts(cat["inter"]) if not cat["inter"].empty else cat["inter"]
+    calibration = calibration_table(
+        cat["null"], family=family,
+        interaction=None if inter.empty else interaction_placebos(cat["inter_null"],
+                                                                 int(inter["family"].max())))
     label, text = robustness_label(head, by_baseline, controller)
     columns = [c for c in COLUMNS if c in head]
     return Robustness(head[columns], cat["null"], by_baseline[columns], calibration, label,
-                      text, missing, deciding_row(head, label))
+                      text, missing, deciding_row(head, label), inter,
+                      interaction_sentence(inter, controller))
+
+
+def interaction_sentence(inter: pd.DataFrame, controller: str) -> str:
+    """The card's second answer in words: which (design, metric) rows show the controller's
+    differences from the baselines changing with the population beyond its null, or that
+    none does (and at what level)."""
+    if inter.empty:
+        return ""
+    tested = inter[inter["verdict"] != "descriptive"]
+    if tested.empty:
+        return (f"Whether {controller}'s differences from the baselines change with the "
+                "population is not tested: too few null replicates.")
+    level = f"one-sided, α/{int(inter['family'].max())} over its {len(tested)} rows"
+    yes = tested[tested["verdict"] == CHANGES]
+    if len(yes):
+        where = "; ".join(f"{_words(r.metric)} ({_place(r.design)}: t {r.t:.1f})"
+                          for r in yes.itertuples())
+        return (f"{controller}'s differences from the baselines change with the population "
+                f"more than under its own null runs for {len(yes)} of {len(tested)} rows: "
+                f"{where} ({level}; whether orderings cross is the label's question).")
+    return (f"{controller}'s differences from the baselines are not shown to change with the "
+            f"population more than under its own null runs in any of {len(tested)} rows "
+            f"(largest t {tested['t'].max():.1f}; {level}).")
 
 
 def deciding_row(head: pd.DataFrame, label: str) -> dict:

@@ -299,7 +299,8 @@ def make_card(ev: Evaluation, *, n_boot: int = 1000, seed: int = 0,
 def verdict_record(v: Verdict) -> dict[str, Any]:
     """The card's two verdicts as ``card.json`` records them."""
     return {"robustness": {"label": v.robustness, "text": v.robustness_text,
-                           "decide": v.decide, "row": v.row},
+                           "decide": v.decide, "row": v.row, "interaction": v.interaction,
+                           "interaction_rows": list(v.interaction_rows)},
             "safety": {"label": v.safety.label, "text": v.safety.text,
                        "findings": v.safety.findings, "threshold": v.safety.threshold}}
 

@@ -30,6 +30,7 @@ import pandas as pd
 
 from ..analysis.delay import cell_metrics, paired_delays
 from ..analysis.evidence import controller_ranks
+from ..analysis.interaction import CHANGES
 from ..analysis.resample import build_design, episode_weights, resampled_metrics
 from ..analysis.reversals import METRICS
 from ..analysis.significance import (
@@ -60,6 +61,11 @@ class Verdict:
     decide: str = ""
     #: the robustness table's row that carries the label (:func:`.robustness.deciding_row`)
     row: dict = field(default_factory=dict)
+    #: the second question: do its differences from the baselines change with the
+    #: population beyond its null (:func:`.robustness.interaction_sentence`)
+    interaction: str = ""
+    #: its rows showing a change beyond the null, and its rows tested
+    interaction_rows: tuple[int, int] = (0, 0)
 
 
 @dataclass
@@ -130,4 +136,14 @@ def card_verdict(runs: pd.DataFrame, controller: str, robustness: Robustness,
         return Verdict(FAILS, f"It reached the goal in none of its {len(own)} runs: its "
                        "rankings mean nothing.", safety)
     return Verdict(robustness.label, robustness.text, safety,
-                   decide if robustness.label == UNDECIDED_LABEL else "", robustness.row)
+                   decide if robustness.label == UNDECIDED_LABEL else "", robustness.row,
+                   robustness.interaction_text, interaction_counts(robustness.interaction))
+
+
+def interaction_counts(inter: pd.DataFrame) -> tuple[int, int]:
+    """(rows whose differences change beyond the null, rows tested) of a card's interaction
+    table."""
+    if inter.empty:
+        return 0, 0
+    tested = inter[inter["verdict"] != "descriptive"]
+    return int((tested["verdict"] == CHANGES).sum()), len(tested)

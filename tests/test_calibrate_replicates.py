@@ -1,0 +1,87 @@
+"""``popnavshift calibrate --replicates N``: more placebos, run beside the study, each judged
+against the study's own count of replicates; the study itself never changes."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from cli_helpers import assert_one_line_error, cli, table_hashes
+from popnavshift.analysis.calibrate import placebo_nulls, placebos
+
+STUDY = """\
+name: side
+seed: 0
+personas: {source: synthetic, n: 60}
+matched_n: 12
+parts:
+  main:
+    populations: [matched_base, matched_deadline]
+    controllers: [reactive, early_yield]
+    episodes: {ids: [head_on-w1.8-d0.06-s0.6-v1, sidewalk-w2.4-d0.12-s0.6-v1]}
+  swap_null:
+    populations: [matched_base, matched_deadline]
+    controllers: [reactive, early_yield]
+    episodes: {ids: [head_on-w1.8-d0.06-s0.6-v1, sidewalk-w2.4-d0.12-s0.6-v1]}
+    null_design: {kind: swap, replicates: 3}
+"""
+
+
+def test_a_placebo_is_judged_against_the_next_replicates_cyclically_or_all_others():
+    assert list(placebo_nulls(6, 1)) == [0, 2, 3, 4, 5]
+    assert list(placebo_nulls(6, 4, 3)) == [5, 0, 1]
+    assert list(placebo_nulls(4, 2, 3)) == [0, 1, 3]  # as many as there are: all others
+    for j in range(7):  # never itself, each as often as the others over all placebos
+        assert j not in placebo_nulls(7, j, 3)
+    counts = np.bincount(np.concatenate([placebo_nulls(7, j, 3) for j in range(7)]))
+    assert set(counts) == {3}
+
+
+def test_placebos_at_the_studys_design_use_that_many_replicates():
+    rng = np.random.default_rng(0)
+    rates = pd.DataFrame({"comparison": "matched", "metric": "mean_delay", "rule": "raw",
+                          "replicate": range(1, 13), "rate": rng.uniform(0.2, 0.3, 12)})
+    loo, deployed = placebos(rates), placebos(rates, {"matched": 4})
+    assert len(loo) == len(deployed) > 0  # one placebo per replicate and check either way
+    # a rate far above every replicate but one: judged against all others it stands out
+    # less than against 4 of them that include it... the verdicts differ by design
+    shifted = rates.assign(rate=np.where(rates["replicate"] == 1, 0.9, rates["rate"]))
+    a = placebos(shifted)
+    b = placebos(shifted, {"matched": 4})
+    assert not a["claim_made"].equals(b["claim_made"])
+
+
+@pytest.fixture(scope="module")
+def side_study(tmp_path_factory):
+    root = tmp_path_factory.mktemp("side")
+    (root / "side.yaml").write_text(STUDY)
+    proc = cli("run", str(root / "side.yaml"), "--out", str(root / "s"), "--no-report",
+               "-w", "1")
+    assert proc.returncode == 0, proc.stderr
+    return root / "s"
+
+
+def test_calibrate_replicates_runs_only_the_new_replicates_beside_the_study(side_study):
+    before = table_hashes(side_study)
+    proc = cli("calibrate", str(side_study), "--replicates", "5", "-w", "1")
+    assert proc.returncode == 0, proc.stderr
+    assert table_hashes(side_study) == before  # the study is not touched
+    assert not (side_study / "report").exists()
+    side = side_study / "calibration"
+    runs = pd.read_parquet(side / "runs.parquet")
+    nulls = runs[runs["population"].str.contains("swap", na=False)]
+    assert nulls["population"].nunique() == 2 * 5  # both arms of 5 swap permutations
+    assert "judged against 3 swap replicates" in " ".join(proc.stderr.split())
+    # the headline table as a whole: one placebo per replicate, 5 of them
+    assert re.search(r"│ \d+/5 ", proc.stdout), proc.stdout
+    again = cli("calibrate", str(side_study), "--replicates", "5", "-w", "1")
+    assert again.returncode == 0, again.stderr
+    assert "0 runs simulated now" in " ".join(again.stderr.split())
+
+
+def test_calibrate_replicates_refuses_fewer_than_the_study_has(side_study):
+    assert_one_line_error(cli("calibrate", str(side_study), "--replicates", "3"),
+                          "--replicates 3", "already has 3")
