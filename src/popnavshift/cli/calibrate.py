@@ -14,6 +14,7 @@ from ..errors import InputError
 from ..progress import console
 from .app import MAX_WORKERS, app, check_workers, say, stdout
 
+
 @app.command()
 def calibrate(
     study_dir: Annotated[Path, typer.Argument(help="A study folder written by `popnavshift run`.")

@@ -7,7 +7,6 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.table import Table
 
 from ..errors import InputError
 from ..progress import console
@@ -22,7 +21,6 @@ from .app import (
     extended,
     folder,
     say,
-    stdout,
 )
 
 
