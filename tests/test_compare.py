@@ -26,7 +26,8 @@ from synth_study import synthetic_study
 MAIN = "import popnavshift.cli.evaluate; from popnavshift.cli import main; main()"
 FOUR = ("reactive", "early_yield", "robot_orca", "HRVO")
 CARD_TABLES = ("outcomes", "per_population", "gaps", "robustness", "robustness_by_baseline",
-               "robustness_null_rates", "robustness_calibration", "ranks", "wins",
+               "robustness_null_rates", "robustness_calibration",
+               "robustness_interaction", "ranks", "wins",
                "crossovers", "safety_rates", "safety_differences", "errors")
 #: the leaderboard's rows on the quick study: its controllers, then navground's behaviours
 BOARD = ("reactive", "early_yield", "robot_orca", "Dummy", "HL", "HRVO", "ORCA",

@@ -183,3 +183,19 @@ def test_a_controller_that_blocks_people_is_judged_on_blocked_pedestrians_too():
     assert raw["family"].eq(5).all()  # robot time, three delays and blocked pedestrians
     assert raw.loc["blocked_pct", "verdict"] != "above the null"  # no population effect on it
     assert raw.loc["mean_delay", "verdict"] == "above the null"  # the delays still decide
+
+
+def test_the_card_asks_whether_its_differences_change_and_says_it_in_words():
+    planted = robustness(*swap_study(9, inject=1.5, seed=3))
+    inter = planted.interaction
+    tested = inter[inter["verdict"] != "descriptive"]  # a metric with no terms is not tested
+    assert len(tested) >= 4 and (tested["n_null"] == 9).all()
+    assert (inter["verdict"] == "changes more than under the null").any()
+    assert "change with the population more than under its own null runs" in \
+        planted.interaction_text
+    # its placebos are in the card's calibration, at the card's level and at 5 %
+    cal = planted.calibration
+    assert cal["test"].str.startswith("interaction").any()
+    nothing = robustness(*swap_study(9, inject=0.0, seed=3))
+    assert not (nothing.interaction["verdict"] == "changes more than under the null").any()
+    assert "not shown to change" in nothing.interaction_text

@@ -120,7 +120,7 @@ def robustness_tables(runs: pd.DataFrame, peds: pd.DataFrame, controller: str,
         frames["pair_null"].append(pn.assign(
             design=label, comparison=pn["comparison"] + " vs " + pn["baseline"]))
         if not tested.interaction.empty:
-            frames["inter"].append(tested.interaction.assign(design=label, **extra))
+            frames["inter"].append(tested.interaction.assign(**extra))
             frames["inter_null"].append(tested.interaction_nulls)
     if not frames["head"]:
         empty = pd.DataFrame(columns=COLUMNS)
