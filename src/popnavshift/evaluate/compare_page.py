@@ -77,7 +77,8 @@ def _excess(row: pd.Series, *, where: bool = True) -> str:
 
 def display_table(table: pd.DataFrame, *, short: bool = False) -> pd.DataFrame:
     """The comparison's main columns as text, one row per controller: the robustness verdict
-    with the excess that carries it, the safety verdict, outcome shares [%] with 95 %
+    with the excess that carries it, how many of its interaction rows change beyond the null
+    (the card's second question), the safety verdict, outcome shares [%] with 95 %
     intervals, the metrics [s], the robot's clearance, path and stop time, and the ranks
     with their best–worst range over populations. ``short``: the columns a paper's page
     holds (the LaTeX table, :data:`SHORT_DROPS`): no intervals on the shares; the burden
@@ -87,7 +88,11 @@ def display_table(table: pd.DataFrame, *, short: bool = False) -> pd.DataFrame:
         out: dict[str, Any] = {"controller": row["controller"],
                                "robustness": row["robustness"],
                                "excess over null" + (" [pp]" if short else ""):
-                                   _excess(row, where=not short), "safety": row["safety"]}
+                                   _excess(row, where=not short),
+                               # the second question: its rows whose differences from the
+                               # baselines change beyond the null, of those tested
+                               "differences change": _text(row.get("differences_change")),
+                               "safety": row["safety"]}
         for o, label in _SHARES.items():
             out[label] = (f"{row[f'{o}_pct']:.1f}" if short and np.isfinite(row[f"{o}_pct"])
                           else _share(row, o))
@@ -100,9 +105,14 @@ def display_table(table: pd.DataFrame, *, short: bool = False) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def _text(value: Any) -> str:
+    """A text cell, "–" when empty or missing."""
+    return value if isinstance(value, str) and value else "–"
+
+
 #: the columns the short (LaTeX) table leaves to the CSV and Markdown: a paper's page holds
 #: about a dozen; the robot time and the timeouts are in Table II of the study's report
-SHORT_DROPS = frozenset({
+SHORT_DROPS = frozenset({"differences change",
     _SHARES["timeout"], _SHARES["controller_error"], _SHARES["standing_contact"],
     METRIC_LABELS["cvar90"], _MEANS["path_length"], _MEANS["stop_time"],
     "rank " + METRIC_LABELS["robot_time"].split(" [")[0],
