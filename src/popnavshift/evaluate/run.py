@@ -155,14 +155,14 @@ def evaluate(
     if identity == NO_ROBOT:
         raise ConfigError("controller 'none' is the no-robot baseline; name a controller")
     factory = CONTROLLERS.make(identity)
-    status = check(factory) if run_check else "skipped"
-    say(f"controller {identity}: contract check {status}")
     part_name, _ = study.require_main()
     base_ids = tuple(b for b in dict.fromkeys(baselines) if b != identity)
     if not base_ids:
         raise ConfigError("evaluate needs at least one baseline other than the controller")
-    for b in base_ids:  # fail before anything runs
+    for b in base_ids:  # fail before anything runs or is said
         CONTROLLERS.make(b)
+    status = check(factory) if run_check else "skipped"
+    say(f"controller {identity}: contract check {status}")
     base_folder = Path(base_folder)
     out = Path(out) if out is not None else card_folder(base_folder, identity)
     check_out(out, base_folder)
