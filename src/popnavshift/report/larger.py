@@ -1,0 +1,64 @@
+"""Where a larger built-in study decided what this one leaves undecided (issue #32, item 3).
+
+A study that cannot decide a headline row within the default's budget says so, and names
+the larger built-in study that did decide it, with its runs and time. What each larger
+study decided is a measurement (docs/method.md, "The default design and the larger
+study"), recorded in ``data/larger_studies.json`` by the study it enlarges; it holds only
+for that study's seed, and the sentence says so.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from importlib import resources
+
+import pandas as pd
+
+#: the two questions of the headline, as the record names them
+QUESTIONS = ("reversal", "interaction")
+
+
+@dataclass(frozen=True)
+class Larger:
+    """A larger built-in study: its name, the seed its decisions were measured on, its
+    runs, its minutes on 2 cores (None if not measured), and the rows it decided by
+    question (``comparison/metric``)."""
+
+    name: str
+    seed: int
+    runs: int
+    minutes: float | None
+    decided: dict[str, frozenset[str]]
+
+
+def larger_study(study: str) -> Larger | None:
+    """The larger built-in study recorded for ``study`` (None if there is none)."""
+    text = resources.files("popnavshift").joinpath("data/larger_studies.json").read_text("utf-8")
+    rec = json.loads(text).get(study)
+    if not isinstance(rec, dict):
+        return None
+    return Larger(rec["larger"], int(rec["seed"]), int(rec["runs"]), rec.get("minutes"),
+                  {q: frozenset(rec["decided"].get(q, ())) for q in QUESTIONS})
+
+
+def split_undecided(rows: pd.DataFrame, question: str, larger: Larger | None
+                    ) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """``rows`` (undecided, with ``comparison`` and ``metric``) split into those the larger
+    study decided on its seed for ``question`` and the rest."""
+    if larger is None or rows.empty:
+        return rows.iloc[:0], rows
+    key = rows["comparison"].astype(str) + "/" + rows["metric"].astype(str)
+    hit = key.isin(larger.decided.get(question, frozenset())).to_numpy()
+    return rows[hit], rows[~hit]
+
+
+def larger_clause(larger: Larger, seed: int | None, n_rows: int = 2) -> str:
+    """``the built-in study paper-large (386,928 runs, 14 min on 2 cores) decided them on
+    seed 0`` — with "on another seed" when this study's seed differs."""
+    cost = f"{larger.runs:,} runs" + (f", about {larger.minutes:.0f} min on 2 cores"
+                                      if larger.minutes else "")
+    where = (f"on this study's seed ({larger.seed})" if seed == larger.seed
+             else f"on seed {larger.seed}, not this study's")
+    return (f"the built-in study {larger.name} ({cost}; `popnavshift run {larger.name}`) "
+            f"decided {'it' if n_rows == 1 else 'them'} {where}")

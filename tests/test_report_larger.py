@@ -1,0 +1,45 @@
+"""The larger built-in study the report names beside rows it decided (issue #32, item 3)."""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from popnavshift.design.study import builtin_studies, load_study
+from popnavshift.report.larger import QUESTIONS, larger_clause, larger_study, split_undecided
+
+
+def test_the_recorded_larger_study_is_built_in_and_its_runs_are_what_plan_counts():
+    larger = larger_study("paper")
+    assert larger is not None and larger.name in builtin_studies()
+    from popnavshift.design.plan import plan_study
+    from popnavshift.episodes.specs import all_episodes
+
+    def distinct(name: str) -> int:
+        study = load_study(name)
+        return len(plan_study(study, all_episodes(seed=study.seed)))
+
+    assert distinct(larger.name) == larger.runs > distinct("paper")
+    assert set(larger.decided) == set(QUESTIONS)
+
+
+def test_undecided_rows_split_into_those_the_larger_study_decided_and_the_rest():
+    larger = larger_study("paper")
+    rows = pd.DataFrame({"comparison": ["matched", "matched", "all_pairs"],
+                         "metric": ["worst_decile", "blocked_pct", "cvar90"]})
+    hit, rest = split_undecided(rows, "reversal", larger)
+    assert list(hit["metric"]) == ["worst_decile", "cvar90"] and list(rest["metric"]) == [
+        "blocked_pct"]
+    hit, rest = split_undecided(rows, "interaction", larger)
+    assert hit.empty and len(rest) == 3
+    none, all_ = split_undecided(rows, "reversal", larger_study("quick"))
+    assert none.empty and len(all_) == 3
+
+
+def test_the_clause_names_the_study_its_cost_and_whose_seed_it_was_measured_on():
+    larger = larger_study("paper")
+    assert larger is not None
+    same = larger_clause(larger, larger.seed, 1)
+    assert larger.name in same and f"{larger.runs:,} runs" in same and "decided it" in same
+    assert "this study's seed" in same
+    other = larger_clause(larger, larger.seed + 1, 2)
+    assert "decided them" in other and "not this study's" in other
