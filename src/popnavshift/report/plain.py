@@ -126,8 +126,9 @@ def clause(sel: pd.DataFrame) -> str:
 
 def design_sentence(rows: pd.DataFrame, comp: str, where: str) -> str:
     """One comparison's clauses for one aspect, after its design (or its short name)."""
-    keys = by_metric(rows).assign(i=rows["inter"].astype(str), r=rows["rev"].astype(str))
-    clauses = [clause(g) for _, g in keys.groupby(["i", "r"], sort=False)]
+    keys = by_metric(rows).assign(i=rows["inter"].astype(object).fillna(""),
+                                  r=rows["rev"].astype(object).fillna(""))
+    clauses = [clause(g) for _, g in keys.groupby(["i", "r"], sort=False, dropna=False)]
     return where[0].upper() + where[1:] + ", " + "; ".join(clauses) + "."
 
 
