@@ -104,17 +104,28 @@ def test_the_calibration_counts_the_interaction_placebos_at_both_levels():
 
 
 def test_the_plain_sentence_follows_the_interaction_verdicts():
-    """Change the verdicts and the words change; the sentence never says orderings cross."""
-    from popnavshift.report.plain import interaction_sentence
+    """Change the verdicts and the words change; the paragraph never says orderings cross."""
+    from popnavshift.report.plain import answer_sentences
 
     rows = pd.DataFrame({"comparison": ["matched", "matched", "all_pairs"],
                          "metric": ["robot_time", "mean_delay", "mean_delay"],
                          "t": [2.0, 6.4, 4.4], "p_t": [0.04, 1e-5, 2e-4], "n_null": 19})
-    s = interaction_sentence(interaction_verdicts(rows))
-    assert s is not None and s["lead"].endswith("yes, beyond the null.")
-    assert ("mean delay differences change more than under the null (mean delay t = 6.4"
-            in s["text"]) and "robot time differences are not shown to change more" in s["text"]
-    assert "not whether orderings cross" in s["text"] and "each of its 3 rows" in s["text"]
-    none = interaction_sentence(interaction_verdicts(rows.assign(p_t=0.5)))
-    assert none is not None and none["lead"].endswith("not shown beyond the null.")
-    assert interaction_sentence(interaction_verdicts(rows.assign(n_null=2))) is None
+    head = pd.DataFrame({"comparison": ["matched"], "metric": ["cvar90"], "rule": ["raw"],
+                         "verdict": ["undecided"], "excess": [0.02], "ci_low": [-0.03],
+                         "ci_high": [0.07], "n_null": [19], "null": ["swap"], "seed_sets": [4],
+                         "variants_per_cell": [12]})
+
+    def text(inter: pd.DataFrame) -> str:
+        answer, _ = answer_sentences({"evidence_headline": head,
+                                      "evidence_interaction": interaction_verdicts(inter)})
+        return " ".join(a["lead"] + " " + a["text"] for a in answer)
+
+    said = text(rows)
+    assert "mean delay differences change more than under the null (t = 6.4" in said
+    assert "robot time differences are not shown to change more" in said
+    assert "not whether orderings cross" in said and "each of its 3 rows" in said
+    assert "Robot time: under the matched shift, controller differences are not shown" in said
+    none = text(rows.assign(p_t=0.5))
+    assert "differences change more than under the null" not in none and "not shown" in none
+    few = text(rows.assign(n_null=2))
+    assert "cannot be tested for a change (2 null replicates; the test needs 3)" in few

@@ -61,7 +61,7 @@ def test_the_report_opens_with_the_answer_in_plain_words(study):
     assert "Do controller rankings change with the pedestrian population beyond noise?" in plain
     assert "Pedestrian burden:" in plain and "Robot time:" in plain
     assert "placebos" in plain  # the deciding test's false-positive rate on this study
-    assert "Controller differences change with the population:" in plain  # interaction test
+    assert "Two questions per metric and design." in plain  # the interaction test, and rates
     assert "not whether orderings cross" in plain
     head = page[box: page.index("</div>", box)]
     assert "swap permutations" in head and "size-matched random subsets of mixed" in head
@@ -98,14 +98,19 @@ def test_the_plain_answer_follows_the_verdicts():
                          row("matched", "robot_time", SMALL, 0.0)])
     answer, _ = answer_sentences({"evidence_headline": head})
     text = " ".join(a["lead"] + " " + a["text"] for a in answer)
-    assert "Pedestrian burden: yes." in text and "Robot time: no." in text
+    assert ("Pedestrian burden: under the matched shift, orderings reverse beyond the null for "
+            "mean delay (undecided for CVaR-90 delay)." in text)
+    assert "Robot time: under the matched shift, orderings show no excess of reversals" in text
     assert "mean delay orderings reverse more often than under the null (+9.0 pp [+6.0, +12.0])" \
         in text and "CVaR-90 delay orderings are undecided" in text
     head.loc[0, "verdict"] = UNDECIDED
     answer, _ = answer_sentences({"evidence_headline": head})
-    assert answer[0]["lead"] == "Pedestrian burden: not decided."
+    assert answer[1]["lead"] == ("Pedestrian burden: under the matched shift, orderings are "
+                                 "undecided.")
     head["verdict"] = SMALL
-    assert answer_sentences({"evidence_headline": head})[0][0]["lead"] == "Pedestrian burden: no."
+    assert answer_sentences({"evidence_headline": head})[0][1]["lead"] == (
+        "Pedestrian burden: under the matched shift, orderings show no excess of reversals of "
+        "5 pp or more.")
 
 
 def test_calibrate_prints_every_rules_false_positive_rate(study):
@@ -189,13 +194,13 @@ def test_every_html_id_of_the_report_is_unique(study):
 
 def test_the_decided_orderings_sentence_follows_the_permutation_verdicts():
     from popnavshift.analysis.verdicts import DESCRIPTIVE, NOT_SHOWN
-    from popnavshift.report.plain import decided_sentence
+    from popnavshift.report.plain_support import decided_sentence
 
     head = pd.DataFrame([{"comparison": "matched", "metric": m, "rule": "sig", "n_null": 19,
                           "verdict": DESCRIPTIVE, "level": 1 - 0.05 / 8, "reversals": 1,
                           "comparable": 40, "observed": 0.025}
                          for m in ("mean_delay", "robot_time")])
     text = decided_sentence(head)["text"]
-    assert "descriptive: 19 null replicates" in text and "it needs 159" in text
+    assert "cannot decide (19 null replicates" in text and "it needs 159" in text
     head["verdict"] = NOT_SHOWN
     assert "shows none above the null" in decided_sentence(head)["text"]
