@@ -26,12 +26,12 @@ def test_undecided_rows_split_into_those_the_larger_study_decided_and_the_rest()
     larger = larger_study("paper")
     rows = pd.DataFrame({"comparison": ["matched", "matched", "all_pairs"],
                          "metric": ["worst_decile", "blocked_pct", "cvar90"]})
-    hit, rest = split_undecided(rows, "reversal", larger)
+    hit, rest = split_undecided(rows, "reversals", larger)
     assert list(hit["metric"]) == ["worst_decile", "cvar90"] and list(rest["metric"]) == [
         "blocked_pct"]
     hit, rest = split_undecided(rows, "interaction", larger)
     assert hit.empty and len(rest) == 3
-    none, all_ = split_undecided(rows, "reversal", larger_study("quick"))
+    none, all_ = split_undecided(rows, "reversals", larger_study("quick"))
     assert none.empty and len(all_) == 3
 
 

@@ -205,7 +205,7 @@ def test_an_undecided_rate_names_what_would_decide_it_and_leaves_a_place_for_a_s
                       "nothing reachable with null replicates alone.")
     seen = []
 
-    def larger(undecided: pd.DataFrame) -> str:
+    def larger(undecided: pd.DataFrame, study=None) -> str:
         seen.append(undecided)
         return "The built-in study `paper-large` decides it in 20 minutes."
 
@@ -213,8 +213,32 @@ def test_an_undecided_rate_names_what_would_decide_it_and_leaves_a_place_for_a_s
     answer, _ = answer_sentences(tables)
     text = next(a for a in answer if a["lead"].startswith("Undecided"))["text"]
     assert sentences(text)[-1] == "The built-in study `paper-large` decides it in 20 minutes."
+    # the undecided reversals, and the interaction rows not shown to change (no margin:
+    # a larger study may decide them), never a row that changes
     assert set(map(tuple, seen[0][["comparison", "metric", "question"]].to_numpy())) == {
-        ("matched", "cvar90", "reversals"), ("all_pairs", "cvar90", "reversals")}
+        ("matched", "cvar90", "reversals"), ("all_pairs", "cvar90", "reversals"),
+        ("all_pairs", "cvar90", "interaction")}
+
+
+def test_the_paper_study_names_paper_large_for_the_rows_it_decided_and_no_study_else():
+    truth = {("matched", "worst_decile"): (UNDECIDED, CHANGES),
+             ("all_pairs", "blocked_pct"): (UNDECIDED, NOT_CHANGED),
+             ("all_pairs", "mean_delay"): (ABOVE, NOT_CHANGED)}
+    tables = {"evidence_headline": headline(truth), "evidence_interaction": interaction(truth)}
+    answer, _ = answer_sentences(tables, ("paper", 0))
+    text = next(a for a in answer if a["lead"].startswith("Undecided"))["text"]
+    said = sentences(text)
+    named = [s for s in said if "paper-large" in s and "decided" in s and "No built-in" not in s]
+    assert any("worst-decile" in s and "reversal" in s and "this study's seed" in s
+               for s in named), said
+    assert any("mean delay across" in s and "interaction" in s for s in named), said
+    nobody = [s for s in said if s.startswith("No built-in study")]
+    assert any("blocked" in s.lower() for s in nobody) and not any(
+        "worst-decile" in s for s in nobody), said
+    other, _ = answer_sentences(tables, ("paper", 3))  # another seed: said so
+    assert "not this study's" in " ".join(a["text"] for a in other)
+    none, _ = answer_sentences(tables, ("quick", 0))  # no larger study recorded
+    assert "paper-large" not in " ".join(a["text"] for a in none)
 
 
 SPAN = {"a": (1, 1, 1), "b": (2, 2, 3), "c": (3, 2, 3)}

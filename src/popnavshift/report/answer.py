@@ -103,7 +103,9 @@ NOTE = ("Raw rule: the paper's reversal rate (tie tolerance 0.02 s for delays, 0
 def _answer(p: Page, head: pd.DataFrame) -> list[Block]:
     """The plain answer, the headline box and the full observed-vs-null table."""
     out: list[Block] = []
-    answer, support = answer_sentences(p.a.tables)
+    stored = p.study.study
+    answer, support = answer_sentences(
+        p.a.tables, None if stored is None else (stored.name, p.study.seed))
     if answer:
         out.append({"kind": "answer", "question": "Do controller rankings change with the "
                     "pedestrian population beyond noise?", "sentences": answer,

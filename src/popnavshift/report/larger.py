@@ -16,7 +16,7 @@ from importlib import resources
 import pandas as pd
 
 #: the two questions of the headline, as the record names them
-QUESTIONS = ("reversal", "interaction")
+QUESTIONS = ("reversals", "interaction")
 
 
 @dataclass(frozen=True)

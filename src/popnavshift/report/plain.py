@@ -30,6 +30,7 @@ from ..analysis.interaction import CHANGES
 from ..analysis.interaction import NOT_SHOWN as NOT_CHANGED
 from ..analysis.reversals import COMPARISONS
 from ..analysis.verdicts import ABOVE, BELOW, MIN_NULLS_T, SMALL, UNDECIDED
+from .larger import larger_clause, larger_study, split_undecided
 from .plain_order import order_sentence
 from .plain_support import calibration_sentence, crossover_sentence, decided_sentence
 from .plain_words import (
@@ -211,16 +212,37 @@ def _advice(r: Any) -> str:
     return "the power advice finds " + re.sub(r"\s*\([^()]*\)", "", r["limit"])
 
 
-def larger_study_sentence(undecided: pd.DataFrame) -> str | None:
-    """The place for a sentence naming a larger built-in study that decides some of the
-    ``undecided`` rows (``comparison``, ``metric``, ``question``: "reversals" or
-    "interaction"), with its time. No built-in study is declared to decide more yet, so
-    there is nothing to name: None."""
-    return None
+def larger_study_sentence(undecided: pd.DataFrame,
+                          study: tuple[str, int | None] | None = None) -> str | None:
+    """The larger built-in study that decided some of the ``undecided`` rows
+    (``comparison``, ``metric``, ``question``: "reversals" or "interaction") of ``study``
+    (its name and seed), with its runs and time, measured on its own seed
+    (:mod:`.larger`); the rows it did not decide are said to be decided by no built-in
+    study. None when no larger study is recorded for this one."""
+    larger = larger_study(study[0]) if study is not None else None
+    if larger is None or undecided.empty:
+        return None
+    said = []
+    for question, words in (("reversals", "the reversal verdict"),
+                            ("interaction", "the interaction test")):
+        hit, rest = split_undecided(undecided[undecided["question"] == question], question,
+                                    larger)
+        if len(hit):
+            said.append(f"For {words} of {_where(hit)}, "
+                        f"{larger_clause(larger, study[1] if study else None, len(hit))}.")
+        if len(rest):
+            said.append(f"No built-in study decided {words} of {_where(rest)} "
+                        f"({larger.name} did not either).")
+    return " ".join(said) or None
 
 
-def undecided_sentence(rows: pd.DataFrame, power: pd.DataFrame | None
-                       ) -> dict[str, str] | None:
+def _where(rows: pd.DataFrame) -> str:
+    """``worst-decile delay under the matched shift and CVaR-90 delay across the pairs``."""
+    return join([f"{label(r.metric)} {phrase(r.comparison)}" for r in rows.itertuples()])
+
+
+def undecided_sentence(rows: pd.DataFrame, power: pd.DataFrame | None,
+                       study: tuple[str, int | None] | None = None) -> dict[str, str] | None:
     """The undecided rows and what would decide each (the power advice, else `plan`)."""
     rev = rows[rows["rev"] == UNDECIDED]
     untested = rows[rows["inter"] == UNTESTED]
@@ -241,10 +263,11 @@ def undecided_sentence(rows: pd.DataFrame, power: pd.DataFrame | None
                      + join([f"{label(m)} {phrase(c)}" for c, m in
                              zip(untested["comparison"], untested["metric"], strict=True)])
                      + ".")
+    open_inter = rows[rows["inter"].isin([UNTESTED, NOT_CHANGED])]
     frame = pd.concat([rev.assign(question="reversals"),
-                       untested.assign(question="interaction")])[
+                       open_inter.assign(question="interaction")])[
         ["comparison", "metric", "question"]]
-    extra = larger_study_sentence(frame)
+    extra = larger_study_sentence(frame, study)
     return {"lead": "Undecided rows and what would decide them.",
             "text": " ".join(parts) + (f" {extra}" if extra else "")}
 
@@ -261,7 +284,8 @@ NO_NULLS = {"lead": "Not decided.",
                     "The paper study runs them (`null_design` parts: `popnavshift run`)."}
 
 
-def answer_sentences(tables: dict[str, pd.DataFrame]
+def answer_sentences(tables: dict[str, pd.DataFrame],
+                     study: tuple[str, int | None] | None = None
                      ) -> tuple[list[dict[str, str]], list[dict[str, str]]]:
     """The first paragraph — both questions answered per aspect, metric and design, what
     would decide the undecided rows, what the overall order does — and the second — what
@@ -279,7 +303,7 @@ def answer_sentences(tables: dict[str, pd.DataFrame]
         answer = [method_sentence(rows, tables.get("evidence_interaction")),
                   aspect_sentence(rows, BURDEN, "Pedestrian burden", head, pops),
                   aspect_sentence(rows, ROBOT, "Robot time", head, pops, designs=False),
-                  undecided_sentence(rows, tables.get("evidence_power"))]
+                  undecided_sentence(rows, tables.get("evidence_power"), study)]
     answer.append(order_sentence(ranks))
     support = [decided_sentence(head), crossover_sentence(tables.get("evidence_crossovers")),
                calibration_sentence(tables.get("evidence_calibration"))]
