@@ -231,8 +231,7 @@ def larger_study_sentence(undecided: pd.DataFrame,
             said.append(f"For {words} of {_where(hit)}, "
                         f"{larger_clause(larger, study[1] if study else None, len(hit))}.")
         if len(rest):
-            said.append(f"No built-in study decided {words} of {_where(rest)} "
-                        f"({larger.name} did not either).")
+            said.append(f"No built-in study decided {words} of {_where(rest)}.")
     return " ".join(said) or None
 
 
