@@ -233,3 +233,12 @@ def test_the_section_says_what_the_null_is_and_which_pairs_carry_the_excess():
         tables={}, missing={"evidence_pairs": "the study ran no null of the all_pairs "
                                               "comparison"})))
     assert "ran no null" in empty.missing
+
+
+def test_with_nine_replicates_the_section_says_no_pair_can_be_named_and_why():
+    c = synthetic_counts(np.random.default_rng(9), n_rep=9,
+                         excess={"mixed vs high_time_pressure": 0.3})
+    sentence = carriers_sentence(pair_verdicts(c), group_verdicts(c))
+    assert "no pair can be named on its own with 9 null replicates" in sentence
+    assert "1/10 (it needs 19)" in sentence
+    assert "Largest excesses (descriptive): mixed vs high time pressure" in sentence

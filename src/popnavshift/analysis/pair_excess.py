@@ -42,7 +42,7 @@ from .significance import Orderings, holm
 from .verdicts import ABOVE, ALPHA, BELOW, binomial_floor, clopper_pearson, prediction_test
 
 #: the attribute the pairs are grouped by: its name and the populations that carry it
-ATTRIBUTE: tuple[str, tuple[str, ...]] = ("time pressure",
+ATTRIBUTE: tuple[str, tuple[str, ...]] = ("time-pressure",
                                           ("high_time_pressure", "matched_deadline"))
 #: populations that hold one fixed profile (no persona sampling): their exact null is
 #: themselves, while the size-matched null gives them one random member of mixed

@@ -115,8 +115,10 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
                                rng_seed=rng_seed, level=level, missing=missing))
         boot_excess.update(tested.boot_excess)
         if not tested.pair_counts.empty:
-            add.update(pair_tables(tested.pair_counts, study.populations, design, index,
-                                   seed=seed))
+            pops_table = study.populations
+            add.update(pair_tables(tested.pair_counts, None if pops_table is None else
+                                   pops_table[pops_table["mapping"].isin(mappings)], design,
+                                   index, seed=seed))
         elif len(design.observed) > 1:
             lacks(missing, PREFIX + "pairs", f"the study ran no null of the {label} comparison")
         if tested.interaction.empty:
