@@ -170,6 +170,12 @@ def _claims(rows: list[dict], alpha: float, rule: str) -> pd.DataFrame:
     return out
 
 
+def _mean(x: np.ndarray) -> float:
+    """The mean of the finite values of ``x``; NaN without one."""
+    x = x[np.isfinite(x)]
+    return float(x.mean()) if x.size else float("nan")
+
+
 def _arrangements(g: pd.DataFrame, kind: str = "null") -> pd.DataFrame:
     """The observed row then the ``kind`` rows in replicate order."""
     return pd.concat([g[g["kind"] == "observed"], g[g["kind"] == kind].sort_values("replicate")])
@@ -192,9 +198,8 @@ def pair_verdicts(counts: pd.DataFrame, *, alpha: float = ALPHA) -> pd.DataFrame
                      "carries": bool({obs["pop_a"], obs["pop_b"]} & set(ATTRIBUTE[1])),
                      **_counted(arr["reversals"].to_numpy(float),
                                 arr["comparable"].to_numpy(float)),
-                     "null_mean_self": float(np.nanmean(_rate(
-                         selfed["reversals"].to_numpy(float),
-                         selfed["comparable"].to_numpy(float)))) if len(selfed) else np.nan})
+                     "null_mean_self": _mean(_rate(selfed["reversals"].to_numpy(float),
+                                                   selfed["comparable"].to_numpy(float)))})
     return _claims(rows, alpha, "pairs")
 
 
