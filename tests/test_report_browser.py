@@ -166,8 +166,8 @@ def test_page_loads_without_errors_and_shows_figures_and_tables(page, tmp_path):
     assert dom["overflow"] <= 0  # a wide table scrolls in its box, not the page sideways
     # the answer first, then the respondent audit, the populations and the checks before
     # any score
-    assert dom["sections"][:8] == ["answer", "ranks", "replicates", "calibration", "audit",
-                                   "populations", "checks", "summary"]
+    assert dom["sections"][:9] == ["answer", "ranks", "pairs", "replicates", "calibration",
+                                   "audit", "populations", "checks", "summary"]
     assert "NOT a language model" in dom["respondent"]
 
 

@@ -80,6 +80,36 @@ RESULT_TABLES: tuple[ResultTable, ...] = (
                 ("comparison", "metric", "population", "controller"),
                 "value: its grid mean; rank_low–rank_high: the 90% range over episode "
                 "resamples; p_first: the share of resamples it ranks first"),
+    ResultTable("evidence_pairs", "pairs",
+                "one population pair of the all-pairs comparison and metric: its raw rate "
+                "against the same pair in every null replicate", ("metric", "pair"),
+                "observed with reversals/comparable; null_mean, null_sd (n_null replicates); "
+                "excess, prediction t on df, p_t; p_holm (Holm over the table's family of "
+                "rows), claim (above / below the null, or not shown); carries (the pair has a "
+                "time-pressure population); null_mean_self (a pair with homogeneous: its null "
+                "with homogeneous itself instead of one random member of mixed)"),
+    ResultTable("evidence_pair_groups", "pairs",
+                "one group of population pairs (with: a time-pressure population in the pair; "
+                "others; difference: with − others) and metric, pooled against the same "
+                "pooling of every null replicate", ("metric", "group"),
+                "as evidence_pairs (Holm over this table's rows)"),
+    ResultTable("evidence_pair_placebos", "pairs",
+                "one rule of the pair tables (pairs, groups) on the study's placebos (each "
+                "null replicate as the observed against the others)", ("rule",),
+                "placebos, tables_with_claim, rate with its Clopper–Pearson interval "
+                "ci_low–ci_high against the nominal level, rows tested, false_claims"),
+    ResultTable("evidence_cohorts", "pairs",
+                "one motion parameter of one cohort: its SD against random subsets of mixed "
+                "of the cohort's size (the size-matched null's construction)",
+                ("mapping", "cohort", "parameter"),
+                "n, in_source (share of members whose profile is one of mixed), sd, random_sd "
+                "(mean over draws subsets), sd_ratio, share_below (subsets at or below sd)"),
+    ResultTable("evidence_cohort_overlaps", "pairs",
+                "one pair of cohorts judged against size-matched subsets: the personas they "
+                "share against two independent random subsets of their sizes",
+                ("mapping", "cohort_a", "cohort_b"),
+                "n_a, n_b, n_source, shared, expected, expected_sd (hypergeometric), p_low = "
+                "P(overlap ≤ shared), p_high = P(overlap ≥ shared)"),
     ResultTable("evidence_curve", "replicates",
                 "one headline rate on the first k seed sets", ("comparison", "metric", "rule",
                                                              "seed_sets")),

@@ -22,6 +22,7 @@ import pandas as pd
 from .delay import cell_metrics, paired_delays
 from .interaction import interaction_test
 from .nulls import CI_LEVEL, Design, null_test
+from .pair_excess import pair_counts
 from .ranked import RANKED_NAMES
 from .resample import build_design, episode_weights, resampled_metrics
 from .significance import ALPHA, LEVEL, Orderings, crossover_tests, orderings
@@ -59,6 +60,9 @@ class Tested:
     #: replicate's statistic with its leave-one-out placebo
     interaction: pd.DataFrame = field(default_factory=pd.DataFrame)
     interaction_nulls: pd.DataFrame = field(default_factory=pd.DataFrame)
+    #: raw reversal counts of every observed pair of a comparison of several pairs, observed
+    #: and in every null replicate (:func:`.pair_excess.pair_counts`)
+    pair_counts: pd.DataFrame = field(default_factory=pd.DataFrame)
 
 
 def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
@@ -98,7 +102,7 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
     frames: dict[str, list[pd.DataFrame]] = {k: [] for k in ("head", "null", "cross", "ord",
                                                            "rank", "placebo", "pair_head",
                                                            "pair_null", "inter",
-                                                           "inter_null")}
+                                                           "inter_null", "pairs")}
     for metric in metrics:
         boot = resampled_metrics(design, weights, (metric,))
         o = orderings(cells, design, boot, metric, level=level)
@@ -125,6 +129,8 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
                 frames["inter_null"].append(reps.assign(comparison=label))
             if rates_only:
                 continue
+            if null_pairs and len(obs_pairs) > 1 and controller is None:
+                frames["pairs"].append(pair_counts(o, d).assign(comparison=label))
             frames["cross"].append(crossover_tests(o, _populations(obs_pairs), method=method,
                                                    alpha=alpha)
                                    .assign(comparison=label, metric=metric))
@@ -141,7 +147,7 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
     cat = {k: pd.concat(v, ignore_index=True) if v else pd.DataFrame() for k, v in frames.items()}
     return Tested(cat["head"], cat["null"], cat["cross"], cat["ord"], cat["rank"],
                   cat["placebo"], n_boot, level, boot_excess, cat["pair_head"], cat["pair_null"],
-                  cat["inter"], cat["inter_null"])
+                  cat["inter"], cat["inter_null"], cat["pairs"])
 
 
 def _others(o: Orderings, controller: str | None) -> list[str]:

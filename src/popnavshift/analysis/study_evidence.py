@@ -46,6 +46,7 @@ from .nulls import (
     family_verdicts,
     headline_designs,
 )
+from .pair_excess import pair_tables
 from .power import Costs, design_advice
 from .ranked import names
 from .replicates import replicability, replicate_curve, seed_sets
@@ -118,6 +119,13 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
         add.update(_replicates(r, p, one, obs_pops, tested.headline, label=label, seed=seed,
                                rng_seed=rng_seed, level=level, missing=missing))
         boot_excess.update(tested.boot_excess)
+        if not tested.pair_counts.empty:
+            pops_table = study.populations
+            add.update(pair_tables(tested.pair_counts, None if pops_table is None else
+                                   pops_table[pops_table["mapping"].isin(mappings)], design,
+                                   index, seed=seed))
+        elif len(design.observed) > 1:
+            lacks(missing, PREFIX + "pairs", f"the study ran no null of the {label} comparison")
         if tested.interaction.empty:
             lacks(missing, PREFIX + "interaction", f"the study ran no null of the {label} "
                                                    "comparison")

@@ -22,6 +22,7 @@ from .answer import ANSWER, RANKS
 from .audit_section import AUDIT, answer_flag, audit_banner
 from .blocks import Page, SectionSpec
 from .evidence_sections import CALIBRATION, REPLICATES
+from .pairs_section import PAIRS
 from .robustness import BACKEND, MAPPING, RESPONDENT, SEEDS, STRUCTURE
 from .sections import (
     CHANGE,
@@ -59,6 +60,7 @@ def respondent_note(manifest: dict[str, Any]) -> tuple[str, str]:
 SECTIONS: tuple[SectionSpec, ...] = (
     ANSWER,
     RANKS,
+    PAIRS,
     REPLICATES,
     CALIBRATION,
     AUDIT,
