@@ -191,7 +191,8 @@ NULL_KINDS: dict[str, NullKind] = {
         same_personas=True, stands_for=MATCHED_PAIR),
     "sized": NullKind(
         "sized_null", lambda s: f"{s.base}_sized{s.replicate}", _sized_replicate,
-        _sized_members, _sized_pair, "size-matched random subsets of mixed",
+        _sized_members, _sized_pair,
+        "size-matched random subsets of mixed (matched in size, not in dispersion)",
         "a crossover among sized subsets",
         listed="size-matched random subsets of mixed (one per cohort)"),
 }
