@@ -296,7 +296,8 @@ def test_the_all_pairs_design_names_the_matched_pairs_own_null():
     text = next(a for a in answer if a["lead"].startswith("Pedestrian"))["text"]
     assert ("Across the 6 pairs of the 4 populations (4 episode seed sets, 12 variants per "
             "cell; against 9 null replicates: size-matched random subsets of mixed (matched in "
-            "size, not in dispersion) for 5 of the pairs, and for the matched pair among them swap permutations of their profiles)"
+            "size, not in dispersion) for 5 of the pairs, and for the matched pair among them "
+            "swap permutations of their profiles)"
             in text)
     # without the matched pair among the populations, or without swap nulls, no such words
     answer, _ = answer_sentences({"evidence_headline": headline(truth),
