@@ -148,11 +148,15 @@ def main() -> None:
     a2.add_argument("--bias", type=float, default=None)
     a2.add_argument("--sd", type=float, default=None)
     a2.add_argument("--errors", type=Path, default=None, help="write every error here")
+    a2.add_argument("--metrics", nargs="+",
+                    default=["robot_time", "mean_delay", "worst_decile", "cvar90"],
+                    help="the metrics evaluated (§8a: the four ranked ones)")
     a = ap.parse_args()
     if a.cmd == "rates":
         rates(a.folder, a.out, a.label, a.nulls, a.sizes)
         return
     table = pd.read_csv(a.rates, dtype={"sets": str})
+    table = table[table["metric"].isin(a.metrics)]
     models = ([tuple(a.model)] if a.model else
               [(e, v) for e in EXCESS_FORMS for v in SD_FORMS])
     spread = Spread(a.bias, a.sd) if a.bias is not None and a.sd is not None else None

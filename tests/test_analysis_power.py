@@ -22,6 +22,7 @@ from popnavshift.analysis.power import (
 from popnavshift.analysis.verdicts import ABOVE, DESCRIPTIVE, UNDECIDED
 from popnavshift.cli.plan import advice_text, holdout_lines
 
+ROOT = ("root", "constant")  # the form of the synthetic truth (the package's may differ)
 COSTS = Costs(per_population=1000.0, observed=2, per_replicate=2, runs_per_second=500.0)
 S = np.array([1, 2, 3, 4])
 
@@ -49,7 +50,7 @@ def test_each_form_recovers_its_own_curve():
 def test_an_excess_rising_as_root_s_is_decided_where_the_truth_says():
     """The truth: δ(S) = 0.03·√S, s = 0.02 at every S. The advice must name the cheapest
     design whose true chance reaches 80 %, with the true t there."""
-    fit = fit_curve(S, 0.03 * np.sqrt(S), np.full(4, 0.02))
+    fit = fit_curve(S, 0.03 * np.sqrt(S), np.full(4, 0.02), ROOT)
     spread = Spread(0.0, 1.0)
     alpha = 0.05 / 8
     adv = advise_prediction(fit, 4, 9, COSTS, spread=spread, alpha=alpha)
@@ -81,7 +82,7 @@ def test_a_flat_excess_gets_the_advice_of_a_fixed_excess():
 
 
 def test_nothing_reachable_is_never_said_while_the_fitted_excess_rises():
-    rising = fit_curve(S, 0.002 * np.sqrt(S), np.full(4, 0.2))
+    rising = fit_curve(S, 0.004 * np.sqrt(S), np.full(4, 0.4), ROOT)
     adv = advise_prediction(rising, 4, 9, COSTS)
     assert "nothing reachable" not in adv["limit"] and "still growing" in adv["limit"]
     assert adv["seed_sets_needed"] == 20 and adv["chance"] < POWER  # the most it promises
@@ -93,11 +94,11 @@ def test_nothing_reachable_is_never_said_while_the_fitted_excess_rises():
 
 def test_the_hold_out_predicts_the_last_point_from_the_first_two():
     truth = pd.DataFrame({"seed_sets": S, "excess": 0.02 * np.sqrt(S), "null_sd": 0.02})
-    h = holdout(truth, 9)
+    h = holdout(truth, 9, ROOT)
     assert h["holdout_at"] == 4 and h["holdout_error"] == pytest.approx(0.0, abs=1e-9)
     bumped = truth.assign(excess=truth["excess"] + np.where(S == 4, 0.01, 0.0))
-    assert holdout(bumped, 9)["holdout_error"] == pytest.approx(0.01 / (0.02 * np.sqrt(10 / 9)))
-    assert np.isnan(holdout(truth.iloc[:2], 9)["holdout_error"])  # S₀ = 2: nothing held out
+    assert holdout(bumped, 9, ROOT)["holdout_error"] == pytest.approx(0.01 / (0.02 * np.sqrt(10 / 9)))
+    assert np.isnan(holdout(truth.iloc[:2], 9, ROOT)["holdout_error"])  # S₀ = 2: nothing held out
 
 
 def _head():
@@ -119,7 +120,7 @@ def _curve():
 
 
 def test_design_advice_fits_each_rows_curve_and_reports_its_hold_out():
-    out = design_advice(_head(), _curve(), COSTS, alpha=0.05 / 8)
+    out = design_advice(_head(), _curve(), COSTS, alpha=0.05 / 8, model=ROOT)
     assert out.loc[0, "limit"] == "decided" and np.isnan(out.loc[0, "runs_needed"])
     row = out.loc[1]
     assert row["excess_form"] == "root" and row["excess_slope"] == pytest.approx(0.04)
@@ -130,9 +131,21 @@ def test_design_advice_fits_each_rows_curve_and_reports_its_hold_out():
 
 
 def test_plan_words_give_the_interval_and_the_hold_out():
-    out = design_advice(_head(), _curve(), COSTS, alpha=0.05 / 8)
+    out = design_advice(_head(), _curve(), COSTS, alpha=0.05 / 8, model=ROOT)
     text = advice_text(next(out.iloc[[1]].itertuples(index=False)))
     assert "seed sets" in text and "; t " in text and "decided with chance" in text
     lines = holdout_lines(out)
     assert len(lines) == 1 and "predicted from seed sets 1–2 was off by" in lines[0]
     assert "cvar90 +0.0" in lines[0]
+
+
+def test_the_chosen_model_still_says_the_excess_grows():
+    """The package's model holds the excess constant (chosen by hold-out); a rising curve
+    is still reported as rising, never as nothing reachable, and a flat one is not."""
+    rising = fit_curve(S, 0.004 * np.sqrt(S), np.full(4, 0.4))
+    assert rising.excess_form == "constant" and rising.growing
+    adv = advise_prediction(rising, 4, 9, COSTS)
+    assert "still growing" in adv["limit"] and "nothing reachable" not in adv["limit"]
+    out = design_advice(_head(), _curve(), COSTS, alpha=0.05 / 8)
+    assert out.loc[1, "t_predicted"] == pytest.approx(
+        0.08 / (0.03 * np.sqrt(1 + 1 / out.loc[1, "nulls_needed"])))

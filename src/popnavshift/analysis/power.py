@@ -41,6 +41,8 @@ from .verdicts import ALPHA, CLAIMS, MIN_EFFECT, min_nulls_permutation
 POWER = 0.80
 MAX_SEED_SETS = 20
 MAX_NULLS = 99
+#: an excess that rises by less (rate units per doubling of seed sets) counts as flat
+RISING = 0.001
 #: the predicted t's interval: its 10–90 % quantiles
 INTERVAL = (0.10, 0.90)
 
@@ -53,11 +55,16 @@ EXCESS_FORMS: dict[str, Callable[[np.ndarray], np.ndarray] | None] = {
 }
 #: s(S): ``constant`` (s at the largest fitted S) or ``power`` (s ∝ S^−b, b ∈ [0, 1])
 SD_FORMS = ("constant", "power")
-#: the forms chosen on seed 0 (docs/analysis.md §8a; benchmarks/power_holdout.py)
-MODEL = ("root", "constant")
-#: the chosen model's hold-out errors (actual − predicted t) on seed 0, a doubling ahead
-HOLDOUT_BIAS = 0.0
-HOLDOUT_SD = 1.0
+#: the forms chosen on seed 0 by hold-out (docs/analysis.md §8a: `python
+#: benchmarks/power_holdout.py evaluate … --fit 2 --target 4 --fit 4 --target 8`): on one
+#: study's nested curve a fitted slope carries more noise than growth, so the constant
+#: forms predict best (mean absolute error 1.55 in t; the growth forms 1.70–2.81)
+MODEL = ("constant", "constant")
+#: the chosen model's hold-out errors (measured − predicted t) there, a doubling ahead:
+#: mean and SD over 10,080 (path, metric) predictions. The mean is the growth the
+#: constant form leaves out
+HOLDOUT_BIAS = 0.873
+HOLDOUT_SD = 1.709
 
 
 @dataclass(frozen=True)
@@ -95,6 +102,9 @@ class CurveFit:
     s_at: int
     b: float
     points: int
+    #: the slope of the curve's excess on ln S (per e-fold of seed sets; 0 with one point):
+    #: whether the excess still rises, whatever form predicts it
+    rise: float = 0.0
 
     def excess(self, s: float) -> float:
         g = EXCESS_FORMS[self.excess_form]
@@ -109,8 +119,9 @@ class CurveFit:
 
     @property
     def growing(self) -> bool:
-        """The fitted excess still rises with seed sets."""
-        return self.excess_form != "constant" and self.c > 0
+        """The excess still rises with seed sets on the curve (a least-squares line on
+        ln S, at least ``RISING`` per doubling), whatever form predicts it."""
+        return self.rise * np.log(2) >= RISING
 
 
 def fit_curve(seed_sets: np.ndarray, excess: np.ndarray, sd: np.ndarray,
@@ -134,7 +145,8 @@ def fit_curve(seed_sets: np.ndarray, excess: np.ndarray, sd: np.ndarray,
         pos = v > 0
         if np.unique(s[pos]).size >= 2:
             b = float(np.clip(-np.polyfit(np.log(s[pos]), np.log(v[pos]), 1)[0], 0.0, 1.0))
-    return CurveFit(e_form, v_form, a, c, float(v[-1]), int(s[-1]), b, int(s.size))
+    rise = _line(np.log(s), e)[1] if np.unique(s).size >= 2 else 0.0
+    return CurveFit(e_form, v_form, a, c, float(v[-1]), int(s[-1]), b, int(s.size), rise)
 
 
 def _line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
@@ -232,7 +244,8 @@ def _unreachable(fit: CurveFit, s0: int, p0: int, s_max: int, costs: Costs, spre
     if fit.growing:
         best = _design(fit, s0, p0, s_max, MAX_NULLS, costs, spread, alpha, min_effect)
         return {"limit": f"under {power:.0%} within the limits (the excess is still "
-                         "growing)", **best}
+                         f"growing: {100 * fit.rise * np.log(2):+.1f} pp per doubling of "
+                         "seed sets on the curve)", **best}
     if fit.points < 2:
         return {"limit": "nothing reachable with null replicates alone; with one seed set "
                          "the study cannot say how more would help (run ≥ 2)"}
