@@ -10,9 +10,9 @@ curves (:func:`fit_curve`, least squares on the curve's points; the forms are
 ``EXCESS_FORMS`` and ``SD_FORMS``, the one used is ``MODEL``, chosen by hold-out on one
 study seed and confirmed on another: docs/analysis.md §8a) and predicts the t of a design
 (S′, P′). That prediction is uncertain: the t a design realizes is taken as
-Normal(t̂ + ``HOLDOUT_BIAS``, σ·k), σ = ``HOLDOUT_SD`` (the model's hold-out errors, a
-doubling ahead, on the seed it was chosen on; the study's own hold-out error when larger)
-and k = max(1, log₂(S′/S₀)). A verdict is decided when t > t_crit, t < −t_crit, or the
+Normal(t̂ + ``HOLDOUT_BIAS``·d, σ·max(1, d)), d = log₂(S′/S₀) the doublings ahead, σ =
+``HOLDOUT_SD`` (the model's hold-out errors, a doubling ahead, on the seed it was chosen
+on; the study's own hold-out error when larger). A verdict is decided when t > t_crit, t < −t_crit, or the
 *no excess ≥ 5 pp* interval holds (t < 5 pp/(s·√(1 + 1/P′)) − t_crit), t_crit =
 t_{P′−1, 1−α/2} at the level each verdict is decided at. The cheapest (S′ ≥ S₀, P′ ≥ P)
 whose chance of a decision reaches ``POWER`` is advised, with its runs and minutes and the
@@ -169,10 +169,15 @@ def sd_exponent(curve: pd.DataFrame) -> float:
 
 @dataclass(frozen=True)
 class Spread:
-    """The realized t around the predicted one: Normal(t̂ + bias, sd·k) (module doc)."""
+    """The realized t around the predicted one: Normal(t̂ + bias·d, sd·max(1, d)),
+    d = log₂(S′/S₀) the doublings of seed sets ahead (module doc): the bias was measured
+    a doubling ahead, and no seed set added adds none of it."""
 
     bias: float = HOLDOUT_BIAS
     sd: float = HOLDOUT_SD
+
+    def shift(self, s1: float, s0: float) -> float:
+        return self.bias * max(0.0, float(np.log2(s1 / s0)))
 
     def scale(self, s1: float, s0: float) -> float:
         return self.sd * max(1.0, float(np.log2(s1 / s0)))
@@ -186,7 +191,7 @@ def chance(fit: CurveFit, s1: int, p1: int, s0: int, spread: Spread, *,
     sd = fit.sd(s1) * np.sqrt(1 + 1 / p1)
     if not (sd > 0):
         return float("nan")
-    mid = fit.t(s1, p1) + spread.bias
+    mid = fit.t(s1, p1) + spread.shift(s1, s0)
     w = spread.scale(s1, s0)
     small = min_effect / sd - crit  # t below this: the interval's top is under min_effect
     return float(min(1.0, stats.norm.sf((crit - mid) / w) + stats.norm.cdf((small - mid) / w)))
@@ -195,7 +200,7 @@ def chance(fit: CurveFit, s1: int, p1: int, s0: int, spread: Spread, *,
 def t_interval(fit: CurveFit, s1: int, p1: int, s0: int, spread: Spread
                ) -> tuple[float, float, float]:
     """The predicted t at (``s1``, ``p1``) and its ``INTERVAL`` quantiles."""
-    mid = fit.t(s1, p1) + spread.bias
+    mid = fit.t(s1, p1) + spread.shift(s1, s0)
     z = stats.norm.ppf(INTERVAL) * spread.scale(s1, s0)
     return fit.t(s1, p1), float(mid + z[0]), float(mid + z[1])
 
