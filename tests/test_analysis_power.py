@@ -9,6 +9,7 @@ import pytest
 from scipy import stats
 
 from popnavshift.analysis.power import (
+    HOLDOUT_BIAS,
     POWER,
     Costs,
     Spread,
@@ -147,5 +148,17 @@ def test_the_chosen_model_still_says_the_excess_grows():
     adv = advise_prediction(rising, 4, 9, COSTS)
     assert "still growing" in adv["limit"] and "nothing reachable" not in adv["limit"]
     out = design_advice(_head(), _curve(), COSTS, alpha=0.05 / 8)
+    s1, p1 = out.loc[1, "seed_sets_needed"], out.loc[1, "nulls_needed"]
+    # the constant form's t, shifted by the growth per doubling it was measured to miss
     assert out.loc[1, "t_predicted"] == pytest.approx(
-        0.08 / (0.03 * np.sqrt(1 + 1 / out.loc[1, "nulls_needed"])))
+        0.08 / (0.03 * np.sqrt(1 + 1 / p1)) + HOLDOUT_BIAS * np.log2(s1 / 4))
+    assert out.loc[1, "t_low"] < out.loc[1, "t_predicted"] < out.loc[1, "t_high"]
+
+
+def test_a_wider_interval_does_not_buy_a_decision():
+    """The model's uncertainty widens the interval; it never raises the chance of a
+    decision (else the advice would pick a design for a lucky draw)."""
+    fit = fit_curve(S, np.full(4, 0.04), np.full(4, 0.03))
+    narrow, wide = Spread(0.0, 0.5), Spread(0.0, 5.0)
+    assert chance(fit, 16, 20, 4, narrow) == chance(fit, 16, 20, 4, wide)
+    assert advise_prediction(fit, 4, 9, COSTS, spread=wide)["limit"].startswith("nothing")

@@ -9,14 +9,15 @@ because noise flips leave the null faster than the observed pair. So the advice 
 curves (:func:`fit_curve`, least squares on the curve's points; the forms are
 ``EXCESS_FORMS`` and ``SD_FORMS``, the one used is ``MODEL``, chosen by hold-out on one
 study seed and confirmed on another: docs/analysis.md §8a) and predicts the t of a design
-(S′, P′). That prediction is uncertain: the t a design realizes is taken as
-Normal(t̂ + ``HOLDOUT_BIAS``·d, σ·max(1, d)), d = log₂(S′/S₀) the doublings ahead, σ =
-``HOLDOUT_SD`` (the model's hold-out errors, a doubling ahead, on the seed it was chosen
-on; the study's own hold-out error when larger). A verdict is decided when t > t_crit, t < −t_crit, or the
-*no excess ≥ 5 pp* interval holds (t < 5 pp/(s·√(1 + 1/P′)) − t_crit), t_crit =
-t_{P′−1, 1−α/2} at the level each verdict is decided at. The cheapest (S′ ≥ S₀, P′ ≥ P)
-whose chance of a decision reaches ``POWER`` is advised, with its runs and minutes and the
-predicted t's 10–90 % interval. When no design within ``MAX_SEED_SETS`` and ``MAX_NULLS``
+(S′, P′), centred at t̂ + ``HOLDOUT_BIAS``·d, d = log₂(S′/S₀) the doublings ahead (the
+growth the constant form leaves out, measured a doubling ahead), with a 10–90 % interval
+from Normal(centre, σ·max(1, d)), σ = ``HOLDOUT_SD`` (the model's hold-out errors on the
+seed it was chosen on; the study's own hold-out error when larger). A verdict is decided
+when t > t_crit, t < −t_crit, or the *no excess ≥ 5 pp* interval holds (t < 5 pp/(s·√(1 +
+1/P′)) − t_crit), t_crit = t_{P′−1, 1−α/2} at the level each verdict is decided at. The
+cheapest (S′ ≥ S₀, P′ ≥ P) whose chance of a decision reaches ``POWER``, the realized t
+falling around the centre with a t's unit noise, is advised with its runs and minutes and
+the interval. When no design within ``MAX_SEED_SETS`` and ``MAX_NULLS``
 reaches it and the fitted excess still grows, the advice says the most those limits can
 promise (never "nothing reachable" while the excess rises). A study with ≥ 3 seed sets
 also reports its own hold-out: the t predicted at S₀ from the curve's first 2 points
@@ -186,23 +187,27 @@ class Spread:
 def chance(fit: CurveFit, s1: int, p1: int, s0: int, spread: Spread, *,
            alpha: float = ALPHA, min_effect: float = MIN_EFFECT) -> float:
     """The chance that a design of ``s1`` seed sets and ``p1`` replicates decides the verdict
-    (above, below, or no excess ≥ ``min_effect``), under the model and its spread."""
+    (above, below, or no excess ≥ ``min_effect``) if the t it realizes falls around the
+    model's centre with a t's own unit noise (§8's z_power). The model's uncertainty is
+    the interval (:func:`t_interval`), not a chance: a wider one would otherwise raise
+    the chance of a lucky draw and advise a design for it."""
     crit = stats.t.ppf(1 - alpha / 2, p1 - 1)
     sd = fit.sd(s1) * np.sqrt(1 + 1 / p1)
     if not (sd > 0):
         return float("nan")
     mid = fit.t(s1, p1) + spread.shift(s1, s0)
-    w = spread.scale(s1, s0)
+    w = 1.0
     small = min_effect / sd - crit  # t below this: the interval's top is under min_effect
     return float(min(1.0, stats.norm.sf((crit - mid) / w) + stats.norm.cdf((small - mid) / w)))
 
 
 def t_interval(fit: CurveFit, s1: int, p1: int, s0: int, spread: Spread
                ) -> tuple[float, float, float]:
-    """The predicted t at (``s1``, ``p1``) and its ``INTERVAL`` quantiles."""
+    """The predicted t at (``s1``, ``p1``) (the model's, shifted by the growth it leaves
+    out) and its ``INTERVAL`` quantiles."""
     mid = fit.t(s1, p1) + spread.shift(s1, s0)
     z = stats.norm.ppf(INTERVAL) * spread.scale(s1, s0)
-    return fit.t(s1, p1), float(mid + z[0]), float(mid + z[1])
+    return float(mid), float(mid + z[0]), float(mid + z[1])
 
 
 def advise_prediction(fit: CurveFit, s0: int, p0: int, costs: Costs, *,
