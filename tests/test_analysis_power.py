@@ -98,7 +98,8 @@ def test_the_hold_out_predicts_the_last_point_from_the_first_two():
     h = holdout(truth, 9, ROOT)
     assert h["holdout_at"] == 4 and h["holdout_error"] == pytest.approx(0.0, abs=1e-9)
     bumped = truth.assign(excess=truth["excess"] + np.where(S == 4, 0.01, 0.0))
-    assert holdout(bumped, 9, ROOT)["holdout_error"] == pytest.approx(0.01 / (0.02 * np.sqrt(10 / 9)))
+    expected = 0.01 / (0.02 * np.sqrt(10 / 9))
+    assert holdout(bumped, 9, ROOT)["holdout_error"] == pytest.approx(expected)
     assert np.isnan(holdout(truth.iloc[:2], 9, ROOT)["holdout_error"])  # S₀ = 2: nothing held out
 
 
