@@ -46,6 +46,9 @@ def test_each_form_recovers_its_own_curve():
     assert flat.excess(16) == pytest.approx(0.03) and not flat.growing
     one = fit_curve(S[:1], [0.03], [0.02])  # one seed set: no curve, constant
     assert one.excess_form == "constant" and one.points == 1
+    none = fit_curve(S, np.full(4, np.nan), np.full(4, 0.02))  # no usable point
+    assert none.points == 0 and not none.growing
+    assert advise_prediction(none, 4, 9, COSTS)["limit"].startswith("cannot estimate")
 
 
 def test_an_excess_rising_as_root_s_is_decided_where_the_truth_says():

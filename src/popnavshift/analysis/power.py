@@ -136,6 +136,8 @@ def fit_curve(seed_sets: np.ndarray, excess: np.ndarray, sd: np.ndarray,
     s, e, v = s[ok], e[ok], v[ok]
     order = np.argsort(s)
     s, e, v = s[order], e[order], v[order]
+    if s.size == 0:  # no point with an excess and a spread: nothing to fit
+        return CurveFit("constant", "constant", np.nan, 0.0, np.nan, 1, 0.0, 0)
     e_form, v_form = model
     if np.unique(s).size < 2:
         e_form, v_form = "constant", "constant"
@@ -215,8 +217,11 @@ def advise_prediction(fit: CurveFit, s0: int, p0: int, costs: Costs, *,
                       min_effect: float = MIN_EFFECT, alpha: float = ALPHA) -> dict:
     """The cheapest (seed sets, null replicates) whose chance of deciding a raw rate
     reaches ``power`` (module doc), or what the limits can promise."""
-    if p0 < 2 or not (np.isfinite(fit.a) and np.isfinite(fit.s_ref)):
+    if p0 < 2:
         return {"limit": "cannot estimate (too few null replicates)"}
+    if not (np.isfinite(fit.a) and np.isfinite(fit.s_ref)):
+        return {"limit": "cannot estimate (no seed-set count with both an excess and a "
+                         "null spread)"}
     if fit.s_ref == 0:
         return {"limit": "cannot estimate (every null replicate has the same rate)"}
     sets = range(s0, MAX_SEED_SETS + 1) if fit.points >= 2 else range(s0, s0 + 1)
