@@ -1,4 +1,4 @@
-"""Verdicts against null replicates, their calibration and the power advice, on data where
+"""Verdicts against null replicates and their calibration, on data where
 the truth is known: synthetic rates (thousands of independent designs) and synthetic
 studies run through the real analysis (:mod:`synth_study`)."""
 
@@ -10,7 +10,6 @@ import pytest
 from scipy import stats
 
 from popnavshift.analysis.calibrate import calibration_table, family_placebos, placebos, status
-from popnavshift.analysis.power import Costs, advise_prediction, design_advice, sd_exponent
 from popnavshift.analysis.verdicts import (
     ABOVE,
     BELOW,
@@ -167,52 +166,6 @@ def test_placebos_leave_one_replicate_out():
     above = p[(p["claim"] == "above the null")].set_index("replicate")["claim_made"]
     # replicate 4 (0.9) against the other three is far above them; the others are not
     assert above.to_dict() == {1: False, 2: False, 3: False, 4: True}
-
-
-# --- the power advice -------------------------------------------------------------------------
-
-
-def test_the_sd_exponent_is_measured_not_assumed():
-    s = np.array([1, 2, 3, 4])
-    half = pd.DataFrame({"seed_sets": s, "null_sd": 0.03 / np.sqrt(s)})
-    flat = pd.DataFrame({"seed_sets": s, "null_sd": np.full(4, 0.03)})
-    assert sd_exponent(half) == pytest.approx(0.5)
-    assert sd_exponent(flat) == pytest.approx(0.0)
-    assert np.isnan(sd_exponent(half.iloc[:1]))
-
-
-def test_advice_names_what_limits_a_verdict_and_what_it_costs():
-    costs = Costs(per_population=1000.0, observed=2, per_replicate=2, runs_per_second=500.0)
-    # a floor (b = 0): more seed sets cannot help; null replicates alone can
-    adv = advise_prediction(0.06, 0.02, 4, 5, 0.0, costs)
-    assert adv["limit"] == "null replicates" and adv["seed_sets_needed"] == 4
-    assert adv["nulls_needed"] > 5
-    assert adv["runs_needed"] == costs.runs(4, 5, 4, adv["nulls_needed"])
-    assert adv["minutes_needed"] == pytest.approx(adv["runs_needed"] / 500 / 60)
-    # an excess far below the null's spread, with a floor: nothing reachable
-    assert advise_prediction(0.02, 0.2, 4, 9, 0.0, costs)["limit"].startswith("nothing reachable")
-    # the spread falls with seed sets: more seed sets decide it
-    assert "seed sets" in advise_prediction(0.02, 0.03, 1, 19, 0.5, costs)["limit"]
-    # one seed set and no curve: it says it cannot tell, never names a number it cannot back
-    one = advise_prediction(0.02, 0.2, 1, 9, float("nan"), costs)
-    assert "one seed set" in one["limit"] and "seed_sets_needed" not in one
-
-
-def test_decided_rows_get_no_advice():
-    head = pd.DataFrame([
-        {"metric": "mean_delay", "rule": "raw", "verdict": ABOVE, "test": "prediction t",
-         "excess": 0.08, "null_sd": 0.02, "n_null": 9, "seed_sets": 4, "n_null_above": 0},
-        {"metric": "cvar90", "rule": "raw", "verdict": UNDECIDED, "test": "prediction t",
-         "excess": 0.04, "null_sd": 0.02, "n_null": 9, "seed_sets": 4, "n_null_above": 0},
-        {"metric": "cvar90", "rule": "sig", "verdict": DESCRIPTIVE, "test": "permutation",
-         "excess": 0.04, "null_sd": 0.02, "n_null": 9, "seed_sets": 4, "n_null_above": 2}])
-    curve = pd.DataFrame({"metric": "cvar90", "rule": "raw", "seed_sets": [1, 2, 3, 4],
-                          "null_sd": 0.04 / np.sqrt([1, 2, 3, 4])})
-    out = design_advice(head, curve, Costs(1000.0, 2, 2, 500.0))
-    assert out.loc[0, "limit"] == "decided" and np.isnan(out.loc[0, "runs_needed"])
-    assert out.loc[1, "sd_exponent"] == pytest.approx(0.5)
-    assert out.loc[1, "runs_needed"] > 0
-    assert out.loc[2, "limit"].startswith("nothing reachable")  # a null is above it
 
 
 @pytest.mark.slow  # many simulated studies of pure noise (10–20 s)

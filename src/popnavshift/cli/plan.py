@@ -92,11 +92,14 @@ def plan(
               f"{say(study or 'paper')} --from study-pilot`.")
         return
     print_advice(advice, f"power (from {say(pilot)})")
+    for line in holdout_lines(advice):
+        prose(line)
     prose("what would decide it: the fewest seed sets and null replicates that decide the "
-          "verdict with 80% power if the excess stays at its estimate, with the null's "
-          "spread falling with seed sets as the pilot's own replicate curve measured; "
-          "run them with `popnavshift run STUDY --seed-sets S --replicates R` (only the new "
-          "runs are simulated; `plan STUDY --seed-sets S --replicates R` counts them first).")
+          "verdict with 80% power, the excess and the null's spread each following the "
+          "curve fitted on the pilot's own seed sets (t: predicted, with its 10–90% "
+          "interval from the model's hold-out error); run them with `popnavshift run STUDY "
+          "--seed-sets S --replicates R` (only the new runs are simulated; `plan STUDY "
+          "--seed-sets S --replicates R` counts them first).")
 
 
 def print_advice(advice, title: str) -> None:
@@ -147,8 +150,31 @@ def advice_text(r) -> str:
         return str(r.limit)
     minutes = f", ~{r.minutes_needed:.0f} min" if r.minutes_needed == r.minutes_needed else ""
     sets = int(r.seed_sets_needed)
-    return (f"{r.limit}: {sets} seed set{'s' if sets != 1 else ''}, {int(r.nulls_needed)} null "
-            f"replicates (+{int(r.runs_needed):,} runs{minutes})")
+    text = (f"{r.limit}: {sets} seed set{'s' if sets != 1 else ''}, {int(r.nulls_needed)} "
+            f"null replicates (+{int(r.runs_needed):,} runs{minutes})")
+    t, low, high = (getattr(r, k, float("nan")) for k in ("t_predicted", "t_low", "t_high"))
+    if t == t:
+        chance = getattr(r, "chance", float("nan"))
+        text += (f"; t {t:.1f} [{low:.1f}, {high:.1f}]"
+                 + (f", decided with chance {chance:.0%}" if chance == chance else ""))
+    return text
+
+
+def holdout_lines(advice) -> list[str]:
+    """Per comparison with ≥ 3 seed sets: how far the t predicted at its seed sets from
+    its first 2 was from the t it measured (the model's own hold-out on this study)."""
+    if "holdout_error" not in advice:
+        return []
+    out = []
+    rows = advice[advice["holdout_error"].notna()]
+    for comparison, g in rows.groupby("comparison", sort=False):
+        s0 = int(g["holdout_at"].iloc[0])
+        parts = ", ".join(f"{say(r.metric)} {r.holdout_error:+.1f} (predicted "
+                          f"{r.holdout_predicted:.1f}, measured {r.holdout_t:.1f})"
+                          for r in g.itertuples())
+        out.append(f"hold-out, {say(comparison)}: the t at {s0} seed sets predicted from "
+                   f"seed sets 1–2 was off by {parts} on this study (measured − predicted).")
+    return out
 
 
 def no_power_why(pilot: Path) -> str:
@@ -163,6 +189,11 @@ def no_power_why(pilot: Path) -> str:
             f"(popnavshift report {pilot})")
 
 
+#: the power table's columns a report before the curve model lacks
+OPTIONAL = ("t_predicted", "t_low", "t_high", "chance", "holdout_at", "holdout_predicted",
+            "holdout_t", "holdout_error")
+
+
 def power_advice(path: Path):
     """The power table a study's report wrote (None if there is none or it predates the
     current columns)."""
@@ -174,10 +205,11 @@ def power_advice(path: Path):
         return None
     cols = ["comparison", "metric", "rule", "excess", "verdict", "limit", "seed_sets_needed",
             "nulls_needed", "runs_needed", "minutes_needed"]
-    numbers = cols[3:4] + cols[6:]
     table = read_csv(path)
     if not set(cols) <= set(table.columns):
         return None
+    cols += [c for c in OPTIONAL if c in table.columns]  # a report of this version has them
+    numbers = cols[3:4] + cols[6:]
     table = table[cols]
     if not all(pd.api.types.is_numeric_dtype(table[c]) for c in numbers):
         raise InputError(f"{path} is damaged (a count or rate that is not a number)",
