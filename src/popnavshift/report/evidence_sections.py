@@ -23,18 +23,40 @@ def _advice(r) -> str:
             f"(+{int(r.runs_needed):,} runs at most{minutes})")
 
 
+def _predicted(r) -> str:
+    """``t 4.3 [−5.1, 13.8], 81%``: the advised design's predicted t, its 10–90% interval
+    and its chance of a decision (– when nothing is advised)."""
+    t = getattr(r, "t_predicted", np.nan)
+    if not np.isfinite(t):
+        return "–"
+    return (f"t {t:.1f} [{r.t_low:.1f}, {r.t_high:.1f}], "
+            f"{100 * getattr(r, 'chance', np.nan):.0f}%")
+
+
+def _holdout(r) -> str:
+    """``at 4 sets: t 2.3, predicted 1.9``: the study's own hold-out (– without one)."""
+    at = getattr(r, "holdout_at", np.nan)
+    if not np.isfinite(at):
+        return "–"
+    return f"at {int(at)} sets: t {r.holdout_t:.1f}, predicted {r.holdout_predicted:.1f}"
+
+
 def power_block(power: pd.DataFrame) -> dict:
     rows = [[r.comparison, LABELS.get(r.metric, r.metric),
              "raw" if r.rule == "raw" else "significant", pp(r.excess),
              fmt(100 * r.null_sd, "{:.1f} pp"),
-             "–" if not np.isfinite(r.sd_exponent) else f"{r.sd_exponent:.2f}",
-             f"{int(r.seed_sets)} / {int(r.n_null)}", Cell(r.verdict, "strong"), _advice(r)]
+             f"{int(r.seed_sets)} / {int(r.n_null)}", Cell(r.verdict, "strong"), _advice(r),
+             _predicted(r), _holdout(r)]
             for r in power.itertuples()]
-    return table(["Comparison", "Metric", "Rule", "Excess", "Null SD", "b", "Seed sets / nulls",
-                  "Verdict", "What would decide it (80% power)"], rows,
-                 caption="Power: what would decide each verdict. b: the null's SD falls as "
-                 "(seed sets)^−b, fitted on the study's own replicate curve (0: more seed sets "
-                 "do not help)", csv="evidence_power")
+    return table(["Comparison", "Metric", "Rule", "Excess", "Null SD", "Seed sets / nulls",
+                  "Verdict", "What would decide it (80% chance)",
+                  "Predicted t there [10–90%], chance", "Hold-out on this study"], rows,
+                 caption="Power: what would decide each verdict, from a model of the study's "
+                 "own curve (the excess and the null's SD on its first 1, 2, … seed sets), "
+                 "with the growth of the excess per doubling of seed sets and the model's "
+                 "error measured on held-out seed sets (docs/analysis.md §8a); the hold-out "
+                 "column predicts this study's last seed-set count from its first two",
+                 csv="evidence_power")
 
 
 def _replicates(p: Page, _: pd.DataFrame) -> list[Block]:
