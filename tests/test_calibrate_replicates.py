@@ -85,3 +85,24 @@ def test_calibrate_replicates_runs_only_the_new_replicates_beside_the_study(side
 def test_calibrate_replicates_refuses_fewer_than_the_study_has(side_study):
     assert_one_line_error(cli("calibrate", str(side_study), "--replicates", "3"),
                           "--replicates 3", "already has 3")
+
+
+def test_plans_advice_counts_the_runs_run_would_simulate_for_it(side_study):
+    from popnavshift.cli.plan import advice_text, exact_runs
+    from popnavshift.design.study import Study
+    from popnavshift.engine.pending import pending_runs
+    from popnavshift.read.folder import open_study
+
+    study = open_study(side_study).study
+    assert isinstance(study, Study)
+    advice = pd.DataFrame({"comparison": ["matched", "matched"], "metric": ["mean_delay"] * 2,
+                           "rule": ["raw"] * 2, "null": ["swap"] * 2, "seed_sets": [1, 1],
+                           "n_null": [3, 3], "limit": ["null replicates", "seed sets"],
+                           "seed_sets_needed": [1.0, 4.0], "nulls_needed": [6.0, 3.0],
+                           "runs_needed": [999.0, 999.0], "minutes_needed": [1.0, 1.0]})
+    out = exact_runs(advice, study, side_study)
+    want = pending_runs(study.extended(replicates=6), side_study).execute
+    assert want and out["runs_exact"].iloc[0] == want  # more replicates: counted as run plans
+    assert np.isnan(out["runs_exact"].iloc[1])  # more seed sets on a part without seeds
+    assert f"`run` would simulate {want:,} new runs here" in advice_text(out.iloc[0])
+    assert "+999 runs at most" in advice_text(out.iloc[1])

@@ -66,6 +66,8 @@ def plan(
     pilot = from_dir or target
     advice = power_advice(pilot / "report" / "tables" / "evidence_power.csv")
     pending = _pending(s, target)
+    if advice is not None and pending is not None and pilot == target:
+        advice = exact_runs(advice, s, target)
     if json_out:
         typer.echo(json.dumps({"study": s.name, "parts": counts, "folder": str(target),
                                "pending": None if pending is None else vars(pending),
@@ -133,6 +135,50 @@ def _pending(study, folder: Path):
     return pending_runs(study, folder) if has_study_tables(folder) else None
 
 
+def exact_runs(advice, study, folder: Path):
+    """``advice`` with ``runs_exact``: what `run STUDY --seed-sets S --replicates R` would
+    simulate in ``folder`` for each advised design (:func:`.engine.pending.pending_runs`,
+    counted as `run` plans them), NaN where the advice cannot be run that way — more seed
+    sets for a comparison on a part without ``seeds`` (the main grid: add ``seeds`` to its
+    parts, as the built-in paper-large does), or a stage before the populations would run
+    again."""
+    import numpy as np
+
+    from ..design.study import Study
+    from ..engine.pending import pending_runs
+
+    assert isinstance(study, Study)
+    extendable = {part.null_design.kind if part.null_design else None
+                  for part in study.parts.values() if part.seeds}
+    cache: dict[tuple[int, int], float] = {}
+    exact = []
+    for r in advice.itertuples(index=False):
+        s1, p1 = getattr(r, "seed_sets_needed", np.nan), getattr(r, "nulls_needed", np.nan)
+        if not (np.isfinite(s1) and np.isfinite(p1)):
+            exact.append(np.nan)
+            continue
+        s1, p1 = int(s1), int(p1)
+        more_sets = s1 > int(r.seed_sets)
+        null_kind = getattr(r, "null", None)
+        if more_sets and null_kind not in extendable:
+            exact.append(np.nan)
+            continue
+        key = (s1 if more_sets else 0, p1)
+        if key not in cache:
+            bigger = study.extended(seed_sets=s1 if more_sets else None,
+                                    replicates=max(p1, _replicates_of(study)))
+            n = pending_runs(bigger, folder).execute
+            cache[key] = np.nan if n is None else float(n)
+        exact.append(cache[key])
+    return advice.assign(runs_exact=exact)
+
+
+def _replicates_of(study) -> int:
+    """The most null replicates a part of ``study`` declares (extended() refuses fewer)."""
+    return max((p.null_design.replicates for p in study.parts.values() if p.null_design),
+               default=1)
+
+
 def _pending_text(folder: Path, pending) -> str:
     """The pending count in words."""
     if pending is None:
@@ -150,8 +196,13 @@ def advice_text(r) -> str:
         return str(r.limit)
     minutes = f", ~{r.minutes_needed:.0f} min" if r.minutes_needed == r.minutes_needed else ""
     sets = int(r.seed_sets_needed)
+    exact = getattr(r, "runs_exact", float("nan"))
+    if exact == exact and r.minutes_needed == r.minutes_needed and r.runs_needed > 0:
+        minutes = f", ~{r.minutes_needed * exact / r.runs_needed:.0f} min"
+    runs = (f"`run` would simulate {int(exact):,} new runs here{minutes}" if exact == exact
+            else f"+{int(r.runs_needed):,} runs at most{minutes}")
     text = (f"{r.limit}: {sets} seed set{'s' if sets != 1 else ''}, {int(r.nulls_needed)} "
-            f"null replicates (+{int(r.runs_needed):,} runs{minutes})")
+            f"null replicates ({runs})")
     t, low, high = (getattr(r, k, float("nan")) for k in ("t_predicted", "t_low", "t_high"))
     if t == t:
         chance = getattr(r, "chance", float("nan"))
