@@ -53,7 +53,7 @@ def main() -> None:
         if proc.returncode:
             sys.exit(proc.stderr)
         man = json.loads((copy / "manifest.json").read_text())
-        runs = man.get("runs", {})
+        runs = man.get("timings", {})
         print(f"{a.folder} → {a.study}: wall {wall:.0f} s ({wall / 60:.1f} min), "
               f"load average {load0:.2f} before, {os.getloadavg()[0]:.2f} after")
         print(json.dumps({k: v for k, v in runs.items() if not isinstance(v, dict)}, indent=1))
