@@ -203,9 +203,12 @@ def _advice(r: Any) -> str:
         minutes = r.get("minutes_needed", np.nan)
         cost = f"+{r['runs_needed']:,.0f} runs" + (f", about {minutes:.0f} min at this study's "
                                                    "speed" if np.isfinite(minutes) else "")
+        chance = r.get("chance", np.nan)
+        odds = (f"with a {100 * chance:.0f}% chance" if np.isfinite(chance) else
+                "with 80% power")
         return (f"{int(r['seed_sets_needed'])} seed sets and {int(r['nulls_needed'])} null "
-                f"replicates ({cost}) would decide it with 80% power if its excess stays at "
-                "its estimate")
+                f"replicates ({cost}, at most) would decide it {odds} by the model of this "
+                "study's own curve (the growth of its excess with seed sets included)")
     if not isinstance(r.get("limit"), str):
         return ""
     # the limit without its parenthesised figures (they are in the power table)
