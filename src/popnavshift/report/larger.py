@@ -22,8 +22,9 @@ QUESTIONS = ("reversals", "interaction")
 @dataclass(frozen=True)
 class Larger:
     """A larger built-in study: its name, the seed its decisions were measured on, its
-    runs, its minutes on 2 cores (None if not measured), and the rows it decided by
-    question (``comparison/metric``)."""
+    runs, the minutes it took on 2 cores to grow a finished folder of the smaller study
+    into it (None if not measured), and the rows it decided by question
+    (``comparison/metric``)."""
 
     name: str
     seed: int
@@ -56,7 +57,8 @@ def split_undecided(rows: pd.DataFrame, question: str, larger: Larger | None
 def larger_clause(larger: Larger, seed: int | None, n_rows: int = 2) -> str:
     """``the built-in study paper-large (386,928 runs, 14 min on 2 cores) decided them on
     seed 0`` — with "on another seed" when this study's seed differs."""
-    cost = f"{larger.runs:,} runs" + (f", about {larger.minutes:.0f} min on 2 cores"
+    cost = f"{larger.runs:,} runs" + (f"; about {larger.minutes:.0f} min on 2 cores from a "
+                                      f"finished folder of this study"
                                       if larger.minutes else "")
     where = (f"on this study's seed ({larger.seed})" if seed == larger.seed
              else f"on seed {larger.seed}, not this study's")
