@@ -83,11 +83,12 @@ class Robustness:
 
 def robustness_tables(runs: pd.DataFrame, peds: pd.DataFrame, controller: str,
                       baselines: Sequence[str], specs: Mapping[str, PopulationSpec],
-                      observed: Sequence[str], *, rng_seed: int = 0, n_boot: int = 1000
-                      ) -> Robustness:
+                      observed: Sequence[str], *, rng_seed: int = 0, n_boot: int = 1000,
+                      interaction: bool = True) -> Robustness:
     """The card's robustness verdict (module doc) from the evaluation parts' ``runs`` and
     ``peds`` (the controller, the baselines and no robot); ``specs``: the study's
-    populations by name; ``observed``: the main part's populations."""
+    populations by name; ``observed``: the main part's populations; ``interaction``: ask
+    the second question too (a card always does; the label does not depend on it)."""
     present = [spec_of(specs, p) for p in runs["population"].unique()]
     conditions = {s.name for s in present if s.role == "observed"}
     designs = headline_designs(present, [p for p in observed if p in conditions])
@@ -107,7 +108,8 @@ def robustness_tables(runs: pd.DataFrame, peds: pd.DataFrame, controller: str,
         obs_pops = list(dict.fromkeys(x for pair in design.observed for x in pair))
         tested = test_comparisons(r, p, {label: design}, obs_pops,
                                   rng=np.random.default_rng([rng_seed, i]), n_boot=n_boot,
-                                  rates_only=True, controller=controller)
+                                  rates_only=True, controller=controller,
+                                  interaction=interaction)
         extra = {"design": label, "seed_sets": int(seed_sets(r).nunique()),
                  "null": design.null}
         frames["head"].append(tested.headline.assign(baseline="all", **extra))
