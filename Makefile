@@ -1,6 +1,7 @@
 # PopNavShift: two commands on a fresh clone with python3 and make.
 #   make run   — create .venv, install, run the default study (offline)
 #   make test  — create/refresh .venv with dev extras, lint, type-check, run the tests
+#                (two worker processes, one test module each at a time: pytest-xdist)
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
@@ -33,7 +34,7 @@ typecheck: install-dev
 	$(BIN)/mypy
 
 test: lint typecheck
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n 2 --dist loadfile
 
 clean:
 	rm -rf $(VENV) $(STUDY) .pytest_cache .ruff_cache .mypy_cache
