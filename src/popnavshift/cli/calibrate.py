@@ -30,7 +30,8 @@ def calibrate(
         help="Run the study's null designs to N replicates in STUDY_DIR/calibration (only the "
         "new runs; the study, its report and cards are not changed) and judge each of the N "
         "placebos against as many replicates as the study itself does: its rules as deployed, "
-        "on N placebos instead of P. 39 lets a rule at 0.05/8 show it is within nominal.")
+        "on N placebos instead of P. With no claim, 39 (390 placebos over the headline's 10 "
+        "rows) is about the fewest that shows a rule at 0.05/10 within twice nominal.")
                           ] = None,
     workers: Annotated[int, typer.Option(
         "--workers", "-w", min=1, max=MAX_WORKERS,
