@@ -100,7 +100,13 @@ def test_plans_advice_counts_the_runs_run_would_simulate_for_it(side_study):
                            "n_null": [3, 3], "limit": ["null replicates", "seed sets"],
                            "seed_sets_needed": [1.0, 4.0], "nulls_needed": [6.0, 3.0],
                            "runs_needed": [999.0, 999.0], "minutes_needed": [1.0, 1.0]})
-    out = exact_runs(advice, study, side_study)
+    from popnavshift.cli.plan import power_advice
+    from popnavshift.io import write_csv
+
+    write_csv(advice.assign(excess=0.1, verdict="undecided"), side_study.parent / "power.csv")
+    read = power_advice(side_study.parent / "power.csv")  # as plan reads a report's table
+    assert read is not None and {"seed_sets", "n_null", "null"} <= set(read.columns)
+    out = exact_runs(read, study, side_study)
     want = pending_runs(study.extended(replicates=6), side_study).execute
     assert want and out["runs_exact"].iloc[0] == want  # more replicates: counted as run plans
     assert np.isnan(out["runs_exact"].iloc[1])  # more seed sets on a part without seeds

@@ -135,13 +135,19 @@ def _pending(study, folder: Path):
     return pending_runs(study, folder) if has_study_tables(folder) else None
 
 
+#: an advised design is counted exactly (planned as `run` would) up to this many runs;
+#: planning millions takes minutes, and so large a design is itself the message
+MAX_EXACT = 600_000
+
+
 def exact_runs(advice, study, folder: Path):
     """``advice`` with ``runs_exact``: what `run STUDY --seed-sets S --replicates R` would
     simulate in ``folder`` for each advised design (:func:`.engine.pending.pending_runs`,
     counted as `run` plans them), NaN where the advice cannot be run that way — more seed
     sets for a comparison on a part without ``seeds`` (the main grid: add ``seeds`` to its
     parts, as the built-in paper-large does), or a stage before the populations would run
-    again."""
+    again; and for the significant rule's rows (descriptive) or designs above
+    :data:`MAX_EXACT` runs."""
     import numpy as np
 
     from ..design.study import Study
@@ -157,8 +163,15 @@ def exact_runs(advice, study, folder: Path):
         if not (np.isfinite(s1) and np.isfinite(p1)):
             exact.append(np.nan)
             continue
+        if r.rule != "raw" or not r.runs_needed <= MAX_EXACT:
+            exact.append(np.nan)  # too large to plan in a moment: its upper bound stands
+            continue
         s1, p1 = int(s1), int(p1)
-        more_sets = s1 > int(r.seed_sets)
+        s0 = getattr(r, "seed_sets", np.nan)
+        if not np.isfinite(s0):  # a power table without the study's own design: unknown
+            exact.append(np.nan)
+            continue
+        more_sets = s1 > int(s0)
         null_kind = getattr(r, "null", None)
         if more_sets and null_kind not in extendable:
             exact.append(np.nan)
@@ -242,7 +255,10 @@ def no_power_why(pilot: Path) -> str:
 
 #: the power table's columns a report before the curve model lacks
 OPTIONAL = ("t_predicted", "t_low", "t_high", "chance", "holdout_at", "holdout_predicted",
-            "holdout_t", "holdout_error")
+            "holdout_t", "holdout_error", "seed_sets", "n_null")
+#: text columns of the power table `plan` keeps when present (the comparison's null kind:
+#: whether `--seed-sets` can grow it, :func:`exact_runs`)
+OPTIONAL_TEXT = ("null",)
 
 
 def power_advice(path: Path):
@@ -261,7 +277,7 @@ def power_advice(path: Path):
         return None
     cols += [c for c in OPTIONAL if c in table.columns]  # a report of this version has them
     numbers = cols[3:4] + cols[6:]
-    table = table[cols]
+    table = table[cols + [c for c in OPTIONAL_TEXT if c in table.columns]]
     if not all(pd.api.types.is_numeric_dtype(table[c]) for c in numbers):
         raise InputError(f"{path} is damaged (a count or rate that is not a number)",
                          hint="write the report again: popnavshift report FOLDER")
