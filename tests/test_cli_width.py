@@ -102,7 +102,7 @@ def test_plan_advice_fits_80_columns_in_a_block_per_row(tmp_path):
     advice = proc.stdout.split("power (from")[1]
     assert len(advice.splitlines()) <= 2 * len(ROWS) + 8  # a line per row, one for advice
     assert "matched · mean_delay · sig: +15.4 pp, above the null (decided)" in advice
-    assert ("    seed sets: 6 seed sets, 19 null replicates (+123,456 runs at most, ~312"
+    assert ("    seed sets: 6 seed sets, 19 null replicates (about +123,456 runs, ~312"
             in advice)
 
 

@@ -200,7 +200,7 @@ def test_an_undecided_rate_names_what_would_decide_it_and_leaves_a_place_for_a_s
     text = next(a for a in answer if a["lead"].startswith("Undecided"))["text"]
     first, second = sentences(text)
     assert first.startswith("For CVaR-90 delay under the matched shift, 8 seed sets and 19 "
-                            "null replicates (+109,824 runs, about 2 min")
+                            "null replicates (about +109,824 runs, about 2 min")
     assert second == ("For CVaR-90 delay across the population pairs, the power advice finds "
                       "nothing reachable with null replicates alone.")
     seen = []

@@ -213,7 +213,7 @@ def advice_text(r) -> str:
     if exact == exact and r.minutes_needed == r.minutes_needed and r.runs_needed > 0:
         minutes = f", ~{r.minutes_needed * exact / r.runs_needed:.0f} min"
     runs = (f"`run` would simulate {int(exact):,} new runs here{minutes}" if exact == exact
-            else f"+{int(r.runs_needed):,} runs at most{minutes}")
+            else f"about +{int(r.runs_needed):,} runs{minutes}")
     text = (f"{r.limit}: {sets} seed set{'s' if sets != 1 else ''}, {int(r.nulls_needed)} "
             f"null replicates ({runs})")
     t, low, high = (getattr(r, k, float("nan")) for k in ("t_predicted", "t_low", "t_high"))

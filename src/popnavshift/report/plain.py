@@ -207,7 +207,7 @@ def _advice(r: Any) -> str:
         odds = (f"with a {100 * chance:.0f}% chance" if np.isfinite(chance) else
                 "with 80% power")
         return (f"{int(r['seed_sets_needed'])} seed sets and {int(r['nulls_needed'])} null "
-                f"replicates ({cost}, at most) would decide it {odds} by the model of this "
+                f"replicates (about {cost}) would decide it {odds} by the model of this "
                 "study's own curve (the growth of its excess with seed sets included)")
     if not isinstance(r.get("limit"), str):
         return ""
