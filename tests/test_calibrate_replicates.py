@@ -106,3 +106,51 @@ def test_plans_advice_counts_the_runs_run_would_simulate_for_it(side_study):
     assert np.isnan(out["runs_exact"].iloc[1])  # more seed sets on a part without seeds
     assert f"`run` would simulate {want:,} new runs here" in advice_text(out.iloc[0])
     assert "+999 runs at most" in advice_text(out.iloc[1])
+
+
+def test_plan_counts_exact_runs_from_the_power_table_a_report_writes(side_study, tmp_path):
+    """power_advice keeps what exact_runs reads (seed_sets, null): `plan STUDY` on a study
+    with its report and tables crashed on a missing column; a rule without an excess
+    (sig with no null replicate) says so instead of '+nan pp'."""
+    from popnavshift.cli.plan import _pp, exact_runs, power_advice
+    from popnavshift.engine.pending import pending_runs
+    from popnavshift.read.folder import open_study
+
+    csv = tmp_path / "evidence_power.csv"
+    pd.DataFrame({"comparison": ["matched"], "metric": ["mean_delay"], "rule": ["sig"],
+                  "excess": [np.nan], "verdict": ["undecided"], "limit": ["null replicates"],
+                  "seed_sets_needed": [1.0], "nulls_needed": [6.0], "runs_needed": [999.0],
+                  "minutes_needed": [1.0], "seed_sets": [1], "null": ["swap"],
+                  "t_predicted": [np.nan]}).to_csv(csv, index=False)
+    study = open_study(side_study).study
+    out = exact_runs(power_advice(csv), study, side_study)
+    assert out["runs_exact"].iloc[0] == pending_runs(study.extended(replicates=6),
+                                                     side_study).execute
+    assert _pp(out["excess"].iloc[0]) == "no estimate" and _pp(0.031) == "+3.1 pp"
+
+
+def test_a_file_named_calibration_is_one_line_and_nothing_is_linked(side_study, tmp_path):
+    import shutil
+
+    study = tmp_path / "s"
+    shutil.copytree(side_study, study, ignore=shutil.ignore_patterns("calibration"))
+    (study / "calibration").write_text("my notes")
+    assert_one_line_error(cli("calibrate", str(study), "--replicates", "5"),
+                          "calibration", "move it away")
+    assert (study / "calibration").read_text() == "my notes"
+    assert not (study / ".calibration.tmp").exists()
+
+
+def test_the_side_folder_copies_the_response_cache_and_links_the_rest(tmp_path):
+    from popnavshift.engine.side import _link_tree
+
+    src = tmp_path / "s"
+    (src / "cache").mkdir(parents=True)
+    (src / "runs.parquet").write_bytes(b"runs")
+    (src / "cache" / "llm.sqlite").write_bytes(b"db")
+    _link_tree(src, tmp_path / "side")
+    inode = (src / "runs.parquet").stat().st_ino
+    assert (tmp_path / "side" / "runs.parquet").stat().st_ino == inode
+    cache = tmp_path / "side" / "cache" / "llm.sqlite"
+    assert cache.read_bytes() == b"db"  # SQLite writes in place: never the study's inode
+    assert cache.stat().st_ino != (src / "cache" / "llm.sqlite").stat().st_ino

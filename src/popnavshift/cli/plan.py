@@ -113,19 +113,24 @@ def print_advice(advice, title: str) -> None:
                   "what would decide it", title=title)
         for r in advice.itertuples(index=False):
             p.add_row(say(r.comparison), say(r.metric), say(r.rule),
-                      f"{100 * r.excess:+.1f} pp", say(r.verdict), say(advice_text(r)))
+                      _pp(r.excess), say(r.verdict), say(advice_text(r)))
         stdout.print(p)
         return
     prose(f"[bold]{title}[/]")
     for r in advice.itertuples(index=False):
         head = (f"{say(r.comparison)} · {say(r.metric)} · {say(r.rule)}: "
-                f"{100 * r.excess:+.1f} pp, {say(r.verdict)}")
+                f"{_pp(r.excess)}, {say(r.verdict)}")
         decide = advice_text(r)
         if decide == "decided":
             prose(f"{head} (decided)")
         else:
             prose(head)
             indented(decide)
+
+
+def _pp(excess: float) -> str:
+    """An excess in percentage points; "no estimate" where the rule gave none (not 'nan')."""
+    return "no estimate" if excess != excess else f"{100 * excess:+.1f} pp"
 
 
 def _pending(study, folder: Path):
@@ -241,8 +246,8 @@ def no_power_why(pilot: Path) -> str:
 
 
 #: the power table's columns a report before the curve model lacks
-OPTIONAL = ("t_predicted", "t_low", "t_high", "chance", "holdout_at", "holdout_predicted",
-            "holdout_t", "holdout_error")
+OPTIONAL = ("seed_sets", "t_predicted", "t_low", "t_high", "chance", "holdout_at",
+            "holdout_predicted", "holdout_t", "holdout_error")
 
 
 def power_advice(path: Path):
@@ -261,7 +266,7 @@ def power_advice(path: Path):
         return None
     cols += [c for c in OPTIONAL if c in table.columns]  # a report of this version has them
     numbers = cols[3:4] + cols[6:]
-    table = table[cols]
+    table = table[cols + [c for c in ("null",) if c in table.columns]]  # exact_runs reads it
     if not all(pd.api.types.is_numeric_dtype(table[c]) for c in numbers):
         raise InputError(f"{path} is damaged (a count or rate that is not a number)",
                          hint="write the report again: popnavshift report FOLDER")
