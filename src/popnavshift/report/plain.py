@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..analysis.interaction import CHANGES
+from ..analysis.interaction import CHANGES, NO_TERMS
 from ..analysis.interaction import NOT_SHOWN as NOT_CHANGED
 from ..analysis.reversals import COMPARISONS
 from ..analysis.verdicts import ABOVE, BELOW, MIN_NULLS_T, SMALL, UNDECIDED
@@ -84,22 +84,26 @@ def _rows(tables: dict[str, pd.DataFrame]) -> pd.DataFrame:
                                           "ci_high"]]
     inter = tables.get("evidence_interaction")
     if inter is None or inter.empty or "verdict" not in inter:
-        return rev.assign(inter=np.nan, t=np.nan, p_adj=np.nan, n_null_i=0)
+        return rev.assign(inter=np.nan, t=np.nan, p_adj=np.nan, n_null_i=0, terms_i=np.nan)
+    terms = inter.get("terms", np.nan)
     i = inter.assign(inter=[_interaction_verdict(r) for _, r in inter.iterrows()],
-                     n_null_i=inter["n_null"])[["comparison", "metric", "inter", "t", "p_adj",
-                                                "n_null_i"]]
+                     n_null_i=inter["n_null"], terms_i=terms)[
+        ["comparison", "metric", "inter", "t", "p_adj", "n_null_i", "terms_i"]]
     return rev.merge(i, on=["comparison", "metric"], how="outer")
 
 
 def _figures(sel: pd.DataFrame, one: Any) -> str:
     """Per metric of ``sel`` the figure ``one(row)``, labelled when there are several."""
-    if len(sel) == 1:
-        return one(sel.iloc[0])
-    return "; ".join(f"{label(r['metric'])} {one(r)}" for _, r in sel.iterrows())
+    figures = [one(r) for _, r in sel.iterrows()]
+    if len(set(figures)) == 1:  # one figure (or the same words for every metric): once
+        return figures[0]
+    return "; ".join(f"{label(m)} {f}" for m, f in zip(sel["metric"], figures, strict=True))
 
 
 def _inter_figure(r: Any) -> str:
     if r["inter"] == UNTESTED:
+        if r.get("terms_i") == 0:  # not the replicates: nothing to rank in any design
+            return NO_TERMS
         return f"{int(r['n_null_i'])} null replicates; the test needs {MIN_NULLS_T}"
     return f"t = {r['t']:.1f}, adjusted p = {r['p_adj']:.2g}"
 
@@ -260,11 +264,15 @@ def undecided_sentence(rows: pd.DataFrame, power: pd.DataFrame | None,
             advice.setdefault(said, {}).setdefault(comp, []).append(label(r["metric"]))
     parts = ["For " + join([f"{join(ms)} {phrase(c)}" for c, ms in where.items()]) + ", "
              + said + "." for said, where in advice.items()]
-    if not untested.empty:
-        parts.append(f"The interaction test needs {MIN_NULLS_T} null replicates for "
-                     + join([f"{label(m)} {phrase(c)}" for c, m in
-                             zip(untested["comparison"], untested["metric"], strict=True)])
-                     + ".")
+    terms = untested.get("terms_i", pd.Series(np.nan, index=untested.index))
+    no_terms = terms == 0  # untested for want of episodes, not of null replicates
+    for group, words in ((untested[~no_terms], f"needs {MIN_NULLS_T} null replicates for "),
+                         (untested[no_terms], "needs more episodes per cell (no controller "
+                          "difference varies over one cell's episodes) for ")):
+        if not group.empty:
+            parts.append("The interaction test " + words
+                         + join([f"{label(m)} {phrase(c)}" for c, m in
+                                 zip(group["comparison"], group["metric"], strict=True)]) + ".")
     open_inter = rows[rows["inter"].isin([UNTESTED, NOT_CHANGED])]
     frame = pd.concat([rev.assign(question="reversals"),
                        open_inter.assign(question="interaction")])[
