@@ -71,6 +71,11 @@ REVERSAL = {ABOVE: ("reverse more often than under the null", "reverse beyond th
                         "are undecided", "undecided for")}
 
 
+#: an undecided rate without an interval (its null replicates gave it no spread)
+NO_INTERVAL = ("are undecided, with no interval to decide by (the null replicates give the "
+               "rate no spread to judge it by")
+
+
 def _interaction_verdict(r: Any) -> str:
     return UNTESTED if int(r["n_null"]) < MIN_NULLS_T else str(r["verdict"])
 
@@ -121,6 +126,8 @@ def clause(sel: pd.DataFrame) -> str:
                      f"({_figures(sel, _inter_figure)}{tail})")
     if isinstance(rev, str):
         words = REVERSAL.get(rev, (f"are {rev}",))[0]
+        if rev == UNDECIDED and not np.isfinite(sel[["ci_low", "ci_high"]].to_numpy(float)).any():
+            words = NO_INTERVAL  # no interval holds 0 or reaches anywhere
         opened = "(" in words  # the words open a parenthesis the figures close
         figures = _figures(sel, interval)
         rev_text = f"{words}: {figures})" if opened else f"{words} ({figures})"
@@ -215,6 +222,9 @@ def _advice(r: Any) -> str:
                 "study's own curve (the growth of its excess with seed sets included)")
     if not isinstance(r.get("limit"), str):
         return ""
+    if r["limit"].startswith("cannot estimate"):  # its reason is the advice: kept
+        return "the power advice " + r["limit"].replace("cannot estimate",
+                                                        "cannot estimate what would decide it", 1)
     # the limit without its parenthesised figures (they are in the power table)
     return "the power advice finds " + re.sub(r"\s*\([^()]*\)", "", r["limit"])
 
