@@ -154,3 +154,15 @@ def test_the_side_folder_copies_the_response_cache_and_links_the_rest(tmp_path):
     cache = tmp_path / "side" / "cache" / "llm.sqlite"
     assert cache.read_bytes() == b"db"  # SQLite writes in place: never the study's inode
     assert cache.stat().st_ino != (src / "cache" / "llm.sqlite").stat().st_ino
+
+
+def test_variants_per_cell_are_the_studys_own_not_the_papers_three(side_study):
+    """The report said '3 variants per cell' for every study (the paper's grid): a study
+    naming one episode per cell has 1; two variants on two seed sets have 4."""
+    from popnavshift.analysis.replicates import variants_per_cell
+
+    assert variants_per_cell(pd.read_parquet(side_study / "runs.parquet")) == 1
+    runs = pd.DataFrame({"episode": [f"e-v{v}@s{k}" for k in (1, 2) for v in (1, 2)],
+                         "scene": "sidewalk", "width": 1.8, "density": 0.06,
+                         "robot_speed": 0.6, "variant": [1, 2, 1, 2]})
+    assert variants_per_cell(runs) == 4 and variants_per_cell(runs.iloc[:0]) == 0
