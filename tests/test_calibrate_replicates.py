@@ -166,3 +166,21 @@ def test_variants_per_cell_are_the_studys_own_not_the_papers_three(side_study):
                          "scene": "sidewalk", "width": 1.8, "density": 0.06,
                          "robot_speed": 0.6, "variant": [1, 2, 1, 2]})
     assert variants_per_cell(runs) == 4 and variants_per_cell(runs.iloc[:0]) == 0
+
+
+def test_the_placebos_are_read_under_both_locks(side_study, monkeypatch):
+    """A second calibrate (or run) used to prune or remake the side folder while the first
+    was still reading its placebos: the locks are now held until they are read."""
+    from popnavshift.analysis import study_evidence
+    from popnavshift.cli.calibrate import _side_calibration
+    from popnavshift.engine import lock
+
+    held = []
+
+    def spy(folder, **kw):
+        held.append({p.name for p in lock._HELD})
+        return {}, None
+
+    monkeypatch.setattr(study_evidence, "evidence_tables", spy)
+    assert _side_calibration(side_study, 5, 1) is None
+    assert held == [{side_study.name, "calibration"}]
