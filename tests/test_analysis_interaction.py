@@ -129,3 +129,27 @@ def test_the_plain_sentence_follows_the_interaction_verdicts():
     assert "differences change more than under the null" not in none and "not shown" in none
     few = text(rows.assign(n_null=2))
     assert "cannot be tested for a change (2 null replicates; the test needs 3)" in few
+
+
+def test_rows_without_a_term_say_why_not_that_replicates_are_missing():
+    """A study whose cells hold one episode ran its null replicates, but no controller
+    difference has a bootstrap spread (terms 0): the paragraph and the card say that, once,
+    not '0 null replicates; the test needs 3' (false: it ran 3)."""
+    from popnavshift.analysis.interaction import NO_TERMS
+    from popnavshift.evaluate.robustness import interaction_sentence
+    from popnavshift.report.plain import answer_sentences
+
+    inter = interaction_verdicts(pd.DataFrame({
+        "comparison": "matched", "metric": ["robot_time", "mean_delay"], "t": np.nan,
+        "p_t": np.nan, "n_null": 0, "terms": 0, "design": "matched"}))
+    head = pd.DataFrame({"comparison": ["matched"] * 2, "metric": ["robot_time", "mean_delay"],
+                         "rule": "raw", "verdict": "undecided", "excess": 0.02,
+                         "ci_low": -0.03, "ci_high": 0.07, "n_null": 3, "null": "swap",
+                         "seed_sets": 1, "variants_per_cell": 3})
+    answer, _ = answer_sentences({"evidence_headline": head, "evidence_interaction": inter})
+    said = " ".join(a["lead"] + " " + a["text"] for a in answer)
+    assert said.count(NO_TERMS) == 2 and "null replicates" not in said.split("decide them.")[1]
+    assert "0 null replicates" not in said and "needs more episodes per cell" in said
+    assert NO_TERMS in interaction_sentence(inter, "HRVO")
+    few = interaction_sentence(inter.assign(terms=4), "HRVO")
+    assert "too few null replicates" in few and NO_TERMS not in few

@@ -112,3 +112,81 @@ def test_plans_advice_counts_the_runs_run_would_simulate_for_it(side_study):
     assert np.isnan(out["runs_exact"].iloc[1])  # more seed sets on a part without seeds
     assert f"`run` would simulate {want:,} new runs here" in advice_text(out.iloc[0])
     assert "about +999 runs" in advice_text(out.iloc[1])
+
+
+def test_plan_counts_exact_runs_from_the_power_table_a_report_writes(side_study, tmp_path):
+    """power_advice keeps what exact_runs reads (seed_sets, null): `plan STUDY` on a study
+    with its report and tables crashed on a missing column; a rule without an excess
+    (sig with no null replicate) says so instead of '+nan pp'."""
+    from popnavshift.cli.plan import _pp, exact_runs, power_advice
+    from popnavshift.engine.pending import pending_runs
+    from popnavshift.read.folder import open_study
+
+    csv = tmp_path / "evidence_power.csv"
+    pd.DataFrame({"comparison": ["matched"], "metric": ["mean_delay"], "rule": ["sig"],
+                  "excess": [np.nan], "verdict": ["undecided"], "limit": ["null replicates"],
+                  "seed_sets_needed": [1.0], "nulls_needed": [6.0], "runs_needed": [999.0],
+                  "minutes_needed": [1.0], "seed_sets": [1], "null": ["swap"],
+                  "t_predicted": [np.nan]}).to_csv(csv, index=False)
+    study = open_study(side_study).study
+    out = exact_runs(power_advice(csv), study, side_study)
+    assert out["runs_exact"].iloc[0] == pending_runs(study.extended(replicates=6),
+                                                     side_study).execute
+    assert _pp(out["excess"].iloc[0]) == "no estimate" and _pp(0.031) == "+3.1 pp"
+
+
+def test_a_file_named_calibration_is_one_line_and_nothing_is_linked(side_study, tmp_path):
+    import shutil
+
+    study = tmp_path / "s"
+    shutil.copytree(side_study, study, ignore=shutil.ignore_patterns("calibration"))
+    (study / "calibration").write_text("my notes")
+    assert_one_line_error(cli("calibrate", str(study), "--replicates", "5"),
+                          "calibration", "move it away")
+    assert (study / "calibration").read_text() == "my notes"
+    assert not (study / ".calibration.tmp").exists()
+
+
+def test_the_side_folder_copies_the_response_cache_and_links_the_rest(tmp_path):
+    from popnavshift.engine.side import _link_tree
+
+    src = tmp_path / "s"
+    (src / "cache").mkdir(parents=True)
+    (src / "runs.parquet").write_bytes(b"runs")
+    (src / "cache" / "llm.sqlite").write_bytes(b"db")
+    _link_tree(src, tmp_path / "side")
+    inode = (src / "runs.parquet").stat().st_ino
+    assert (tmp_path / "side" / "runs.parquet").stat().st_ino == inode
+    cache = tmp_path / "side" / "cache" / "llm.sqlite"
+    assert cache.read_bytes() == b"db"  # SQLite writes in place: never the study's inode
+    assert cache.stat().st_ino != (src / "cache" / "llm.sqlite").stat().st_ino
+
+
+def test_variants_per_cell_are_the_studys_own_not_the_papers_three(side_study):
+    """The report said '3 variants per cell' for every study (the paper's grid): a study
+    naming one episode per cell has 1; two variants on two seed sets have 4."""
+    from popnavshift.analysis.replicates import variants_per_cell
+
+    assert variants_per_cell(pd.read_parquet(side_study / "runs.parquet")) == 1
+    runs = pd.DataFrame({"episode": [f"e-v{v}@s{k}" for k in (1, 2) for v in (1, 2)],
+                         "scene": "sidewalk", "width": 1.8, "density": 0.06,
+                         "robot_speed": 0.6, "variant": [1, 2, 1, 2]})
+    assert variants_per_cell(runs) == 4 and variants_per_cell(runs.iloc[:0]) == 0
+
+
+def test_the_placebos_are_read_under_both_locks(side_study, monkeypatch):
+    """A second calibrate (or run) used to prune or remake the side folder while the first
+    was still reading its placebos: the locks are now held until they are read."""
+    from popnavshift.analysis import study_evidence
+    from popnavshift.cli.calibrate import _side_calibration
+    from popnavshift.engine import lock
+
+    held = []
+
+    def spy(folder, **kw):
+        held.append({p.name for p in lock._HELD})
+        return {}, None
+
+    monkeypatch.setattr(study_evidence, "evidence_tables", spy)
+    assert _side_calibration(side_study, 5, 1) is None
+    assert held == [{side_study.name, "calibration"}]

@@ -306,3 +306,23 @@ def test_the_all_pairs_design_names_the_matched_pairs_own_null():
     answer, _ = answer_sentences({"evidence_headline": headline(
         {("all_pairs", "mean_delay"): (ABOVE, CHANGES)}), "evidence_ranks": rk})
     assert "matched pair among them" not in answer[1]["text"]
+
+
+def test_an_undecided_rate_without_an_interval_does_not_claim_one(monkeypatch):
+    """One null replicate (or replicates with one rate): no interval, so the clause may not
+    say 'each interval holds 0 and reaches past 5 pp'; the power advice's 'cannot estimate'
+    keeps its reason instead of 'the power advice finds cannot estimate'."""
+    monkeypatch.setattr(plain, "larger_study_sentence", lambda *a, **k: None)
+    truth = {("matched", "cvar90"): (UNDECIDED, None)}
+    head = headline(truth).assign(ci_low=np.nan, ci_high=np.nan)
+    power = head.assign(seed_sets_needed=np.nan, nulls_needed=np.nan, runs_needed=np.nan,
+                        minutes_needed=np.nan,
+                        limit="cannot estimate (too few null replicates)")
+    answer, _ = answer_sentences({"evidence_headline": head, "evidence_power": power})
+    text = " ".join(a["lead"] + " " + a["text"] for a in answer)
+    assert "holds 0" not in text and "undecided, with no interval to decide by" in text
+    assert "advice finds cannot" not in text
+    assert "cannot estimate what would decide it (too few null replicates)" in text
+    finite = " ".join(a["text"] for a in answer_sentences({"evidence_headline": headline(
+        truth)})[0])
+    assert REV_SAYS[UNDECIDED] in finite and "no interval to decide by" not in finite

@@ -50,6 +50,10 @@ STATISTIC = "rankz"
 CHANGES = "changes more than under the null"
 NOT_SHOWN = "not shown to change more than under the null"
 VERDICTS = (CHANGES, NOT_SHOWN, DESCRIPTIVE)
+#: why a row with no term (``terms`` 0) is untested, whatever its null replicates: no
+#: controller difference had an episode-bootstrap spread to scale it by
+NO_TERMS = ("no controller difference varies over its cell's episodes; more episodes per "
+            "cell would test it")
 
 
 def interaction_z(o: Orderings, groups: Sequence[Sequence[tuple[str, str]]]) -> np.ndarray:

@@ -21,6 +21,7 @@ from itertools import permutations
 import numpy as np
 import pandas as pd
 
+from .cells import episode_cells
 from .delay import cell_metrics, paired_delays
 from .evidence import test_comparisons
 from .nulls import Design
@@ -28,7 +29,17 @@ from .ranked import names
 from .reversals import comparisons
 from .significance import LEVEL
 
-VARIANTS_PER_SEED_SET = 3
+VARIANTS_PER_SEED_SET = 3  # the paper's grid; a study's own count: variants_per_cell
+
+
+def variants_per_cell(runs: pd.DataFrame) -> int:
+    """The episodes a cell holds in ``runs`` (its variants over every seed set: 3 per seed
+    set in the paper's grid, but a study names its own episodes): the count most cells
+    have."""
+    if runs.empty:
+        return 0
+    counts = episode_cells(runs).groupby("cell").size()
+    return int(counts.mode().max())
 CURVE_BOOT = 200  # resamples per point of the curve (its last point is the headline's)
 
 
@@ -60,16 +71,17 @@ def replicate_curve(runs: pd.DataFrame, pedestrians: pd.DataFrame,
     for k in range(1, len(order) + 1):
         if k == len(order) and full is not None:
             frames.append(full[full["metric"].isin(metrics)].assign(
-                seed_sets=k, variants_per_cell=VARIANTS_PER_SEED_SET * k))
+                seed_sets=k, variants_per_cell=variants_per_cell(runs)))
             continue
         use = set(order[:k])
-        tested = test_comparisons(runs[run_sets.isin(use).to_numpy()],
+        used = runs[run_sets.isin(use).to_numpy()]
+        tested = test_comparisons(used,
                                   pedestrians[ped_sets.isin(use).to_numpy()], designs, observed,
                                   rng=np.random.default_rng([seed, k]), n_boot=n_boot,
                                   level=level, metrics=metrics, rates_only=True,
                                   interaction=False)
         frames.append(tested.headline.assign(seed_sets=k,
-                                             variants_per_cell=VARIANTS_PER_SEED_SET * k))
+                                             variants_per_cell=variants_per_cell(used)))
     return pd.concat(frames, ignore_index=True)
 
 

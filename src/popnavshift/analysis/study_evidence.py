@@ -49,7 +49,7 @@ from .nulls import (
 from .pair_excess import pair_tables
 from .power import Costs, design_advice
 from .ranked import names
-from .replicates import replicability, replicate_curve, seed_sets
+from .replicates import replicability, replicate_curve, seed_sets, variants_per_cell
 from .significance import LEVEL
 from .surviving import surviving_findings
 from .verdicts import ALPHA
@@ -109,8 +109,9 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
         tested = test_comparisons(r, p, one, obs_pops, rng=np.random.default_rng([rng_seed, i]),
                                   n_boot=n_boot, level=level, null_sizes=sizes)
         n_sets = int(seed_sets(r).nunique())
+        per_cell = variants_per_cell(r)  # the study's own episodes, not the paper's 3/set
         head = tested.headline.assign(null=design.null,
-                                      seed_sets=n_sets, variants_per_cell=3 * n_sets)
+                                      seed_sets=n_sets, variants_per_cell=per_cell)
         add = {"headline": head, "null_rates": tested.null_rates,
                "crossovers": tested.crossovers,
                "placebo_crossovers": tested.placebo_crossovers,
@@ -131,7 +132,7 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
                                                    "comparison")
         else:
             add["interaction"] = tested.interaction.assign(null=design.null, seed_sets=n_sets,
-                                                           variants_per_cell=3 * n_sets)
+                                                           variants_per_cell=per_cell)
             add["interaction_nulls"] = tested.interaction_nulls
         if head["n_null"].max() > 0:
             costs[label] = design_costs(r, obs_pops, design.nulls, study.manifest)

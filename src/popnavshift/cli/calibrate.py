@@ -159,19 +159,26 @@ def _side_calibration(study_dir: Path, replicates: int, workers: int):
     from ..engine.side import prepare_side
     from ..read.folder import open_study
 
-    with study_lock(study_dir):  # nothing else writes the study while it is linked
+    # both locks until the placebos are read: nothing writes the study while it is linked,
+    # and another calibrate can neither prune nor remake the side folder under this one
+    with study_lock(study_dir):
         side, study, sizes = prepare_side(study_dir, replicates)
-    with study_lock(side):
-        claim_folder(side, study, force=True)  # the side folder is this command's own
-        done = run_study(study, side, workers=workers, executor_name="local")
+        with study_lock(side):
+            claim_folder(side, study, force=True)  # the side folder is this command's own
+            done = run_study(study, side, workers=workers, executor_name="local")
+            _side_placebos(side, replicates, sizes, done)
+            with console.status(f"running the placebos on {replicates} replicates…"):
+                tables, _ = evidence_tables(open_study(side), null_sizes=sizes)
+    return tables.get("evidence_calibration")
+
+
+def _side_placebos(side: Path, replicates: int, sizes: dict, done) -> None:
+    """The side run's one line: its replicates, what it simulated, the study's sizes."""
     console.print(f"{say(side)}: {replicates} replicates of every null design "
                   f"({done.executed:,} runs simulated now, {done.reused:,} reused); each "
                   "placebo judged against "
                   + ", ".join(f"{n} {kind}" for kind, n in sorted(sizes.items()))
                   + " replicates, as the study is", highlight=False, soft_wrap=True)
-    with console.status(f"running the placebos on {replicates} replicates…"):
-        tables, _ = evidence_tables(open_study(side), null_sizes=sizes)
-    return tables.get("evidence_calibration")
 
 
 def _calibration(study_dir: Path, fresh: bool):

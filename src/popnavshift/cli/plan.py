@@ -113,19 +113,24 @@ def print_advice(advice, title: str) -> None:
                   "what would decide it", title=title)
         for r in advice.itertuples(index=False):
             p.add_row(say(r.comparison), say(r.metric), say(r.rule),
-                      f"{100 * r.excess:+.1f} pp", say(r.verdict), say(advice_text(r)))
+                      _pp(r.excess), say(r.verdict), say(advice_text(r)))
         stdout.print(p)
         return
     prose(f"[bold]{title}[/]")
     for r in advice.itertuples(index=False):
         head = (f"{say(r.comparison)} · {say(r.metric)} · {say(r.rule)}: "
-                f"{100 * r.excess:+.1f} pp, {say(r.verdict)}")
+                f"{_pp(r.excess)}, {say(r.verdict)}")
         decide = advice_text(r)
         if decide == "decided":
             prose(f"{head} (decided)")
         else:
             prose(head)
             indented(decide)
+
+
+def _pp(excess: float) -> str:
+    """An excess in percentage points; "no estimate" where the rule gave none (not 'nan')."""
+    return "no estimate" if excess != excess else f"{100 * excess:+.1f} pp"
 
 
 def _pending(study, folder: Path):

@@ -34,6 +34,9 @@ SIDE = "calibration"
 #: or does not need (its report, cards, leaderboard, and itself)
 SKIP = frozenset({SIDE, "report", "evaluate", "leaderboard"})
 BASE = "base.json"
+#: copied, not linked: the response cache (SQLite writes its file in place, so a linked
+#: cache would change the study's own when a stage runs again in the side folder)
+COPIED = "cache"
 
 
 def null_sizes(study) -> dict[str, int]:
@@ -61,6 +64,9 @@ def _link_tree(src: Path, dst: Path) -> None:
         return {n for n in names if (top and n in SKIP) or n.startswith(".")}
 
     def link(a: str, b: str) -> None:
+        if Path(a).relative_to(src).parts[0] == COPIED:  # SQLite writes in place
+            shutil.copy2(a, b)
+            return
         try:
             os.link(a, b)
         except OSError:
@@ -89,6 +95,9 @@ def prepare_side(study_dir: Path, replicates: int):
                           f"{max(sizes.values())} replicates of its null", hint="give more "
                           f"than {max(sizes.values())} (e.g. {3 * max(sizes.values()) + 2})")
     side = Path(study_dir) / SIDE
+    if (side.exists() and not side.is_dir()) or side.is_symlink():
+        raise ConfigError(f"{side} is not the side folder `calibrate --replicates` makes "
+                          "(a file or a link)", hint="move it away and run it again")
     base = {"runs_digest": _runs_digest(Path(study_dir)), "config_hash": study.config_hash()}
     if side.is_dir() and _read_base(side) != base:
         shutil.rmtree(side)  # made from another state of the study: start again from it

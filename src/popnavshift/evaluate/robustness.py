@@ -40,7 +40,12 @@ import pandas as pd
 
 from ..analysis.calibrate import calibration_table
 from ..analysis.evidence import complete_design, test_comparisons
-from ..analysis.interaction import CHANGES, interaction_placebos, interaction_verdicts
+from ..analysis.interaction import (
+    CHANGES,
+    NO_TERMS,
+    interaction_placebos,
+    interaction_verdicts,
+)
 from ..analysis.nulls import design_populations, family_verdicts, headline_designs
 from ..analysis.ranked import RANKED_METRICS
 from ..analysis.replicates import seed_sets
@@ -156,8 +161,10 @@ def interaction_sentence(inter: pd.DataFrame, controller: str) -> str:
         return ""
     tested = inter[inter["verdict"] != "descriptive"]
     if tested.empty:
+        why = (NO_TERMS if "terms" in inter and (inter["terms"] == 0).all()
+               else "too few null replicates")
         return (f"Whether {controller}'s differences from the baselines change with the "
-                "population is not tested: too few null replicates.")
+                f"population is not tested: {why}.")
     level = f"one-sided, α/{int(inter['family'].max())} over its {len(tested)} rows"
     yes = tested[tested["verdict"] == CHANGES]
     if len(yes):

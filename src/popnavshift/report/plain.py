@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..analysis.interaction import CHANGES
+from ..analysis.interaction import CHANGES, NO_TERMS
 from ..analysis.interaction import NOT_SHOWN as NOT_CHANGED
 from ..analysis.reversals import COMPARISONS
 from ..analysis.verdicts import ABOVE, BELOW, MIN_NULLS_T, SMALL, UNDECIDED
@@ -71,6 +71,11 @@ REVERSAL = {ABOVE: ("reverse more often than under the null", "reverse beyond th
                         "are undecided", "undecided for")}
 
 
+#: an undecided rate without an interval (its null replicates gave it no spread)
+NO_INTERVAL = ("are undecided, with no interval to decide by (the null replicates give the "
+               "rate no spread to judge it by")
+
+
 def _interaction_verdict(r: Any) -> str:
     return UNTESTED if int(r["n_null"]) < MIN_NULLS_T else str(r["verdict"])
 
@@ -84,22 +89,26 @@ def _rows(tables: dict[str, pd.DataFrame]) -> pd.DataFrame:
                                           "ci_high"]]
     inter = tables.get("evidence_interaction")
     if inter is None or inter.empty or "verdict" not in inter:
-        return rev.assign(inter=np.nan, t=np.nan, p_adj=np.nan, n_null_i=0)
+        return rev.assign(inter=np.nan, t=np.nan, p_adj=np.nan, n_null_i=0, terms_i=np.nan)
+    terms = inter.get("terms", np.nan)
     i = inter.assign(inter=[_interaction_verdict(r) for _, r in inter.iterrows()],
-                     n_null_i=inter["n_null"])[["comparison", "metric", "inter", "t", "p_adj",
-                                                "n_null_i"]]
+                     n_null_i=inter["n_null"], terms_i=terms)[
+        ["comparison", "metric", "inter", "t", "p_adj", "n_null_i", "terms_i"]]
     return rev.merge(i, on=["comparison", "metric"], how="outer")
 
 
 def _figures(sel: pd.DataFrame, one: Any) -> str:
     """Per metric of ``sel`` the figure ``one(row)``, labelled when there are several."""
-    if len(sel) == 1:
-        return one(sel.iloc[0])
-    return "; ".join(f"{label(r['metric'])} {one(r)}" for _, r in sel.iterrows())
+    figures = [one(r) for _, r in sel.iterrows()]
+    if len(set(figures)) == 1:  # one figure (or the same words for every metric): once
+        return figures[0]
+    return "; ".join(f"{label(m)} {f}" for m, f in zip(sel["metric"], figures, strict=True))
 
 
 def _inter_figure(r: Any) -> str:
     if r["inter"] == UNTESTED:
+        if r.get("terms_i") == 0:  # not the replicates: nothing to rank in any design
+            return NO_TERMS
         return f"{int(r['n_null_i'])} null replicates; the test needs {MIN_NULLS_T}"
     return f"t = {r['t']:.1f}, adjusted p = {r['p_adj']:.2g}"
 
@@ -117,6 +126,8 @@ def clause(sel: pd.DataFrame) -> str:
                      f"({_figures(sel, _inter_figure)}{tail})")
     if isinstance(rev, str):
         words = REVERSAL.get(rev, (f"are {rev}",))[0]
+        if rev == UNDECIDED and not np.isfinite(sel[["ci_low", "ci_high"]].to_numpy(float)).any():
+            words = NO_INTERVAL  # no interval holds 0 or reaches anywhere
         opened = "(" in words  # the words open a parenthesis the figures close
         figures = _figures(sel, interval)
         rev_text = f"{words}: {figures})" if opened else f"{words} ({figures})"
@@ -211,6 +222,9 @@ def _advice(r: Any) -> str:
                 "study's own curve (the growth of its excess with seed sets included)")
     if not isinstance(r.get("limit"), str):
         return ""
+    if r["limit"].startswith("cannot estimate"):  # its reason is the advice: kept
+        return "the power advice " + r["limit"].replace("cannot estimate",
+                                                        "cannot estimate what would decide it", 1)
     # the limit without its parenthesised figures (they are in the power table)
     return "the power advice finds " + re.sub(r"\s*\([^()]*\)", "", r["limit"])
 
@@ -260,11 +274,15 @@ def undecided_sentence(rows: pd.DataFrame, power: pd.DataFrame | None,
             advice.setdefault(said, {}).setdefault(comp, []).append(label(r["metric"]))
     parts = ["For " + join([f"{join(ms)} {phrase(c)}" for c, ms in where.items()]) + ", "
              + said + "." for said, where in advice.items()]
-    if not untested.empty:
-        parts.append(f"The interaction test needs {MIN_NULLS_T} null replicates for "
-                     + join([f"{label(m)} {phrase(c)}" for c, m in
-                             zip(untested["comparison"], untested["metric"], strict=True)])
-                     + ".")
+    terms = untested.get("terms_i", pd.Series(np.nan, index=untested.index))
+    no_terms = terms == 0  # untested for want of episodes, not of null replicates
+    for group, words in ((untested[~no_terms], f"needs {MIN_NULLS_T} null replicates for "),
+                         (untested[no_terms], "needs more episodes per cell (no controller "
+                          "difference varies over one cell's episodes) for ")):
+        if not group.empty:
+            parts.append("The interaction test " + words
+                         + join([f"{label(m)} {phrase(c)}" for c, m in
+                                 zip(group["comparison"], group["metric"], strict=True)]) + ".")
     open_inter = rows[rows["inter"].isin([UNTESTED, NOT_CHANGED])]
     frame = pd.concat([rev.assign(question="reversals"),
                        open_inter.assign(question="interaction")])[
