@@ -123,7 +123,7 @@ def test_plan_counts_exact_runs_from_the_power_table_a_report_writes(side_study,
     from popnavshift.read.folder import open_study
 
     csv = tmp_path / "evidence_power.csv"
-    pd.DataFrame({"comparison": ["matched"], "metric": ["mean_delay"], "rule": ["sig"],
+    pd.DataFrame({"comparison": ["matched"], "metric": ["mean_delay"], "rule": ["raw"],
                   "excess": [np.nan], "verdict": ["undecided"], "limit": ["null replicates"],
                   "seed_sets_needed": [1.0], "nulls_needed": [6.0], "runs_needed": [999.0],
                   "minutes_needed": [1.0], "seed_sets": [1], "null": ["swap"],
