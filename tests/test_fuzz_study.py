@@ -247,3 +247,13 @@ def _tree(root: Path) -> set[str]:
 @pytest.mark.parametrize("seed", [0, 2**32 - 1])
 def test_the_extreme_seeds_a_study_accepts_draw_episodes(seed):
     assert all_episodes(seed) and get_episode(f"{ONE_EPISODE}@s{seed}", seed=seed)
+
+
+def test_a_misspelt_profile_set_names_the_file():
+    """Found by the fuzz test above: the profile-set label's own ConfigError (raised inside
+    validation, not a ValueError) reached the user without the file's name."""
+    data = {"name": "fuzz", "parts": {"two": {"mapping": ["A~shufle"]}}}
+    with pytest.raises(PopNavShiftError) as err:
+        study_from_dict(parse_study_yaml(yaml.safe_dump(data), "fuzz.yaml"), "fuzz.yaml")
+    assert str(err.value).startswith("fuzz.yaml: profile set 'A~shufle'")
+    assert "\n" not in str(err.value)

@@ -196,6 +196,10 @@ def study_from_dict(data: Any, where: str = "study") -> Study:
         study = Study.model_validate(data)
     except ValidationError as err:
         raise ConfigError(_format_error(err, where)) from None
+    except ConfigError as err:  # raised by a validator itself (a profile set's label): where
+        if err.message.startswith(f"{where}:"):
+            raise
+        raise ConfigError(f"{where}: {err.message}", hint=err.hint) from None
     study._where = where
     return study
 
