@@ -21,16 +21,7 @@ import tempfile
 import time
 from pathlib import Path
 
-SKIP = {"report", "evaluate", "leaderboard", "calibration"}
-
-
-def link_copy(src: Path, dst: Path) -> None:
-    """``dst`` as hard links to ``src``'s study files (not its outputs, lock or temporary
-    files)."""
-    def ignore(folder: str, names: list[str]) -> set[str]:
-        return {n for n in names if (Path(folder) == src and n in SKIP) or n.startswith(".")}
-
-    shutil.copytree(src, dst, ignore=ignore, copy_function=os.link)
+from popnavshift.engine.side import link_tree
 
 
 def main() -> None:
@@ -43,7 +34,7 @@ def main() -> None:
     tmp = Path(tempfile.mkdtemp(prefix="bench_extend_", dir=a.folder.resolve().parent))
     copy = tmp / "study"
     try:
-        link_copy(a.folder.resolve(), copy)
+        link_tree(a.folder.resolve(), copy)  # the side folder's links: the cache copied
         load0 = os.getloadavg()[0]
         started = time.perf_counter()
         proc = subprocess.run([sys.executable, "-m", "popnavshift", "run", a.study, "--out",

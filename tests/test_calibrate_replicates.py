@@ -148,13 +148,13 @@ def test_a_file_named_calibration_is_one_line_and_nothing_is_linked(side_study, 
 
 
 def test_the_side_folder_copies_the_response_cache_and_links_the_rest(tmp_path):
-    from popnavshift.engine.side import _link_tree
+    from popnavshift.engine.side import link_tree
 
     src = tmp_path / "s"
     (src / "cache").mkdir(parents=True)
     (src / "runs.parquet").write_bytes(b"runs")
     (src / "cache" / "llm.sqlite").write_bytes(b"db")
-    _link_tree(src, tmp_path / "side")
+    link_tree(src, tmp_path / "side")
     inode = (src / "runs.parquet").stat().st_ino
     assert (tmp_path / "side" / "runs.parquet").stat().st_ino == inode
     cache = tmp_path / "side" / "cache" / "llm.sqlite"

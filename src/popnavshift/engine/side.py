@@ -56,7 +56,7 @@ def _runs_digest(folder: Path) -> str:
     return content_digest(folder / "runs.parquet")
 
 
-def _link_tree(src: Path, dst: Path) -> None:
+def link_tree(src: Path, dst: Path) -> None:
     """``dst`` as hard links to ``src``'s files (but :data:`SKIP` at the top and lock or
     temporary files), copying where the file system cannot link."""
     def ignore(folder: str, names: list[str]) -> set[str]:
@@ -104,7 +104,7 @@ def prepare_side(study_dir: Path, replicates: int):
     if not side.is_dir():
         tmp = side.with_name(f".{SIDE}.tmp")
         shutil.rmtree(tmp, ignore_errors=True)
-        _link_tree(Path(study_dir), tmp)
+        link_tree(Path(study_dir), tmp)
         write_json(base, tmp / BASE)
         os.replace(tmp, side)
     return side, study.extended(replicates=replicates), sizes
