@@ -46,8 +46,9 @@ def test_placebos_at_the_studys_design_use_that_many_replicates():
                           "replicate": range(1, 13), "rate": rng.uniform(0.2, 0.3, 12)})
     loo, deployed = placebos(rates), placebos(rates, {"matched": 4})
     assert len(loo) == len(deployed) > 0  # one placebo per replicate and check either way
-    # a rate far above every replicate but one: judged against all others it stands out
-    # less than against 4 of them that include it... the verdicts differ by design
+    # replicate 1 far above the rest: leave-one-out puts it in every other placebo's null
+    # (a wide null), the study's design only in the 4 placebos before it (cyclically), so
+    # the two sets of claims differ
     shifted = rates.assign(rate=np.where(rates["replicate"] == 1, 0.9, rates["rate"]))
     a = placebos(shifted)
     b = placebos(shifted, {"matched": 4})
