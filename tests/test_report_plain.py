@@ -326,3 +326,14 @@ def test_an_undecided_rate_without_an_interval_does_not_claim_one(monkeypatch):
     finite = " ".join(a["text"] for a in answer_sentences({"evidence_headline": headline(
         truth)})[0])
     assert REV_SAYS[UNDECIDED] in finite and "no interval to decide by" not in finite
+
+
+def test_null_counts_are_singular_for_one_replicate():
+    from popnavshift.report.plain_words import counted_nulls
+
+    assert counted_nulls(9, "swap") == "9 swap permutations of their profiles"
+    assert counted_nulls(1, "swap") == "1 swap permutation of their profiles"
+    assert counted_nulls(1, "sized").startswith("1 size-matched random subset of mixed (")
+    assert "(matched in size, not in dispersion)" in counted_nulls(1, "sized")
+    assert counted_nulls(1, "other") == "1 null replicate"
+    assert counted_nulls(3, "other") == "3 null replicates"

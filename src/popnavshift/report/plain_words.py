@@ -41,6 +41,21 @@ def null_words(kind: str, otherwise: str) -> str:
     return NULL_KINDS[kind].words if kind in NULL_KINDS else otherwise
 
 
+#: the plural nouns of the null designs' words, and their singular (``1 swap permutation``)
+_SINGULAR = {"permutations": "permutation", "subsets": "subset", "replicates": "replicate"}
+
+
+def counted_nulls(n: int, kind: str, otherwise: str = "null replicates") -> str:
+    """``9 swap permutations of their profiles``; ``1 swap permutation …`` for one."""
+    words = null_words(kind, otherwise)
+    if n == 1:
+        head, *rest = words.split(" (", 1)
+        for many, one in _SINGULAR.items():
+            head = head.replace(many, one, 1)
+        words = " (".join([head, *rest])
+    return f"{n} {words}"
+
+
 def pp(x: float, signed: bool = True) -> str:
     """A rate difference in percentage points: ``+8.6 pp``."""
     return "–" if not np.isfinite(x) else f"{100 * x:{'+' if signed else ''}.1f} pp"
@@ -101,14 +116,14 @@ def design_phrase(rows: pd.DataFrame, head: pd.DataFrame, populations: list[str]
               f"cell")
     if r["comparison"] == "matched":
         return (f"under the matched time-pressure shift (same personas; {design}; against "
-                f"{n_null} {null_words(kind, 'null replicates')})")
+                f"{counted_nulls(n_null, kind)})")
     n_pops = len(populations)
     n_pairs = n_pops * (n_pops - 1) // 2
     where = (f"across the {n_pairs} pairs of the {n_pops} populations" if n_pops >= 2
              else "across the population pairs")
     own = matched_pair_null(head, populations)
     if not own:
-        return f"{where} ({design}; against {n_null} {null_words(kind, 'null replicates')})"
-    return (f"{where} ({design}; against {n_null} null replicates: "
+        return f"{where} ({design}; against {counted_nulls(n_null, kind)})"
+    return (f"{where} ({design}; against {counted_nulls(n_null, '')}: "
             f"{null_words(kind, kind)} for {n_pairs - 1} of the pairs, and for the matched "
             f"pair among them {null_words(own, own)})")
