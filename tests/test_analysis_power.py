@@ -166,3 +166,16 @@ def test_a_wider_interval_does_not_buy_a_decision():
     narrow, wide = Spread(0.0, 0.5), Spread(0.0, 5.0)
     assert chance(fit, 16, 20, 4, narrow) == chance(fit, 16, 20, 4, wide)
     assert advise_prediction(fit, 4, 9, COSTS, spread=wide)["limit"].startswith("nothing")
+
+
+def test_a_null_too_spread_to_rule_out_the_margin_is_said_with_the_sd_it_would_need():
+    """Flat excess +1 pp, null SD 3 pp: even unlimited replicates need SD < (5 − 1)/z to
+    rule out 5 pp, so the advice names that SD; a tight null (0.5 pp) is not told so."""
+    from popnavshift.analysis.verdicts import ALPHA, MIN_EFFECT
+
+    wide = advise_prediction(fit_curve(S, np.full(4, 0.01), np.full(4, 0.03)), 4, 9, COSTS)
+    need = (MIN_EFFECT - 0.01) / stats.norm.ppf(1 - ALPHA / 2)
+    assert wide["limit"].startswith("nothing reachable")
+    assert f"needs a null SD under {100 * need:.1f} pp" in wide["limit"]
+    tight = fit_curve(S, np.full(4, 0.01), np.full(4, 0.005))
+    assert "needs a null SD" not in advise_prediction(tight, 4, 9, COSTS).get("limit", "")

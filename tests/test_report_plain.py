@@ -337,3 +337,14 @@ def test_null_counts_are_singular_for_one_replicate():
     assert "(matched in size, not in dispersion)" in counted_nulls(1, "sized")
     assert counted_nulls(1, "other") == "1 null replicate"
     assert counted_nulls(3, "other") == "3 null replicates"
+
+
+def test_a_design_short_of_the_power_target_is_not_said_to_decide():
+    from popnavshift.report.plain import _advice
+
+    row = {"seed_sets_needed": 20, "nulls_needed": 99, "runs_needed": 4_000_000,
+           "minutes_needed": 500.0}
+    low = _advice({**row, "chance": 0.04})
+    assert low.startswith("even the largest design") and "only a 4% chance" in low
+    high = _advice({**row, "chance": 0.85})
+    assert high.startswith("20 seed sets and 99 null replicates") and "85% chance" in high

@@ -264,10 +264,17 @@ def _unreachable(fit: CurveFit, s0: int, p0: int, s_max: int, costs: Costs, spre
     if fit.points < 2:
         return {"limit": "nothing reachable with null replicates alone; with one seed set "
                          "the study cannot say how more would help (run ≥ 2)"}
-    return {"limit": f"nothing reachable within {MAX_SEED_SETS} seed sets and {MAX_NULLS} "
-                     f"null replicates (the fitted excess does not grow: "
-                     f"{100 * fit.excess(s0):+.1f} pp at {s0} seed sets, null SD "
-                     f"{100 * fit.sd(s0):.1f} pp)"}
+    head = f"nothing reachable within {MAX_SEED_SETS} seed sets and {MAX_NULLS} null replicates"
+    figures = (f"(the fitted excess does not grow: {100 * fit.excess(s0):+.1f} pp at {s0} "
+               f"seed sets, null SD {100 * fit.sd(s0):.1f} pp)")
+    # the null SD under which unlimited replicates could rule out min_effect (normal limit)
+    needed = (min_effect - fit.excess(s0)) / stats.norm.ppf(1 - alpha / 2)
+    if fit.sd(s0) > needed:
+        return {"limit": f"{head}: ruling out an excess of {100 * min_effect:.0f} pp needs a "
+                         f"null SD under {100 * max(needed, 0):.1f} pp even with unlimited "
+                         f"null replicates, and the null's spread does not fall with seed "
+                         f"sets by the model of this study's curve {figures}"}
+    return {"limit": f"{head} {figures}"}
 
 
 def holdout(curve: pd.DataFrame, p: int, model: tuple[str, str] = MODEL) -> dict:

@@ -28,6 +28,7 @@ import pandas as pd
 
 from ..analysis.interaction import CHANGES, NO_TERMS
 from ..analysis.interaction import NOT_SHOWN as NOT_CHANGED
+from ..analysis.power import POWER
 from ..analysis.reversals import COMPARISONS
 from ..analysis.verdicts import ABOVE, BELOW, MIN_NULLS_T, SMALL, UNDECIDED
 from .larger import larger_clause, larger_study, split_undecided
@@ -215,11 +216,16 @@ def _advice(r: Any) -> str:
         cost = f"+{r['runs_needed']:,.0f} runs" + (f", about {minutes:.0f} min at this study's "
                                                    "speed" if np.isfinite(minutes) else "")
         chance = r.get("chance", np.nan)
+        design = (f"{int(r['seed_sets_needed'])} seed sets and {int(r['nulls_needed'])} null "
+                  f"replicates (about {cost})")
+        model = "by the model of this study's own curve (the growth of its excess with seed " \
+                "sets included)"
+        if np.isfinite(chance) and chance < POWER:  # the most the limits promise: said so
+            return (f"even the largest design within the power advice's limits, {design}, "
+                    f"would decide it with only a {100 * chance:.0f}% chance {model}")
         odds = (f"with a {100 * chance:.0f}% chance" if np.isfinite(chance) else
                 "with 80% power")
-        return (f"{int(r['seed_sets_needed'])} seed sets and {int(r['nulls_needed'])} null "
-                f"replicates (about {cost}) would decide it {odds} by the model of this "
-                "study's own curve (the growth of its excess with seed sets included)")
+        return f"{design} would decide it {odds} {model}"
     if not isinstance(r.get("limit"), str):
         return ""
     if r["limit"].startswith("cannot estimate"):  # its reason is the advice: kept
