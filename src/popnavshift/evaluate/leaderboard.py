@@ -30,6 +30,11 @@ from .run import BASELINES
 NOT_CONTROLLERS: dict[str, str] = {
     "": "navground's base Behavior, registered under the empty name: no motion rule of its own",
     "PyDummy": "navground's example of a behaviour written in Python: the same motion as Dummy",
+    "Policy": "navground-learning's policy behaviour, registered when it is imported: with no "
+              "policy of its own it does not move; a learned policy is a row by its file "
+              "(popnavshift leaderboard policy.onnx)",
+    "GroupPolicy": "navground-learning's policy behaviour for a group of agents: no policy "
+                   "of its own",
 }
 
 
