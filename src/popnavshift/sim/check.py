@@ -39,7 +39,7 @@ from .constants import (
 )
 from .controllers import ControllerFactory
 from .run import simulate
-from .world import controller_sensing
+from .world import robot_sensing
 
 ROBOT_SPEEDS = (0.6, 1.0)  # [m/s] the cell speeds of SPEC §6
 _CMD_TOL = 1e-4  # [m/s], [rad/s] float32 slack on feasibility
@@ -51,7 +51,7 @@ class ControllerContractError(ConfigError):
 
 def robot_agent(factory: ControllerFactory, start: Sequence[float], goal: Sequence[float],
                 speed: float, *, wheel_max: float | None = None) -> sim.Agent:
-    """The robot as the episode builder makes it (id 0, its sensing, 2WDiff
+    """The robot as the episode builder makes it (id 0, bounded sensing, 2WDiff
     with ``max_forward_speed = speed``), heading to ``goal``. The caller adds it
     to a world, then calls ``factory.after_placement(agent.behavior, dt)``."""
     kin = core.kinematics.TwoWheelsDifferentialDriveKinematics(
@@ -59,7 +59,7 @@ def robot_agent(factory: ControllerFactory, start: Sequence[float], goal: Sequen
     kin.max_forward_speed = speed
     behavior = factory.build(kin, ROBOT_RADIUS, speed)
     agent = sim.Agent(ROBOT_RADIUS, behavior, kinematics=kin,
-                      state_estimations=controller_sensing(factory, behavior))
+                      state_estimations=robot_sensing(behavior))
     agent.id = 0
     heading = math.atan2(goal[1] - start[1], goal[0] - start[0])
     agent.pose = core.Pose2(tuple(start), heading)

@@ -75,7 +75,8 @@ def _make_robot(spec: EpisodeSpec, controller) -> tuple[sim.Agent, core.Behavior
         max_speed=speed, wheel_axis=WHEEL_AXIS
     )
     behavior = controller.build(kin, ROBOT_RADIUS, speed)
-    sensing = controller_sensing(controller, behavior)
+    # a loop driver without sensing senses through the loop (controllers.LoopDriver)
+    sensing = robot_sensing(behavior, getattr(controller, "sensing", True))
     robot = sim.Agent(
         radius=ROBOT_RADIUS, behavior=behavior, kinematics=kin, state_estimations=sensing
     )
@@ -96,17 +97,6 @@ def robot_sensing(behavior: core.Behavior, wanted: bool = True) -> list:
     if not wanted or not isinstance(behavior.environment_state, core.GeometricState):
         return []
     return [sim.state_estimations.BoundedStateEstimation(range=ROBOT_SENSING_RANGE)]
-
-
-def controller_sensing(controller, behavior: core.Behavior) -> list:
-    """The robot's state estimations for ``controller``'s ``behavior``: the controller's
-    own when it declares them (``state_estimations(behavior)``, e.g. a learned policy's
-    sensor, :mod:`popnavshift.learn.policy`), else :func:`robot_sensing` (a loop driver
-    without sensing senses through the loop, controllers.LoopDriver)."""
-    own = getattr(controller, "state_estimations", None)
-    if callable(own):
-        return list(own(behavior))
-    return robot_sensing(behavior, getattr(controller, "sensing", True))
 
 
 def remove_agent(agent: sim.Agent, slot: int) -> None:

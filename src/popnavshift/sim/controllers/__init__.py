@@ -17,10 +17,7 @@ A factory is called as ``factory(**params)`` and returns a
   robot's pose and target and before the first step (e.g. navground 0.7.0's
   uninitialised ``ORCABehavior::D`` workaround, see docs/method.md).
 
-Optionally, ``state_estimations(behavior) -> list[sim.Sensor]`` gives the robot its own
-sensors (a learned policy's, :mod:`popnavshift.learn.policy`) instead of the bounded
-sensing every other controller gets (:func:`popnavshift.sim.world.controller_sensing`), and
-``loop_driver() -> LoopDriver`` puts the controller on the stepping
+Optionally, ``loop_driver() -> LoopDriver`` puts the controller on the stepping
 loop's fast path (:class:`LoopDriver`): navground then never calls Python for
 the robot. The built-in ``reactive`` and ``early_yield`` use it; their
 behaviours stay the reference (a test checks that both give the same runs) and
