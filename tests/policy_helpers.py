@@ -6,37 +6,23 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import gymnasium as gym
 import numpy as np
 import onnx
 from onnx import TensorProto, helper, numpy_helper
 
 
 def observation_layout() -> tuple[int, int, dict[str, slice]]:
-    """(observation size, action size, the flat observation's slice of each key), read from
-    the configuration the policy controller uses."""
-    from navground import core
-    from navground.learning.behaviors.policy import PolicyBehavior
-    from navground.learning.internal.group import GymAgent
+    """(observation size, action size, the flat observation's slice of each field), from
+    :mod:`popnavshift.learn.spaces`."""
+    from popnavshift.learn.spaces import ACTION_SIZE, OBSERVATION_SIZE
+    from popnavshift.learn.spaces import observation_layout as fields
 
-    from popnavshift.learn import spaces
-    from popnavshift.sim.constants import ROBOT_RADIUS, WHEEL_AXIS
-
-    kin = core.kinematics.TwoWheelsDifferentialDriveKinematics(max_speed=1.0,
-                                                               wheel_axis=WHEEL_AXIS)
-    behavior = PolicyBehavior(kin, ROBOT_RADIUS, action_config=spaces.action_config(),
-                              observation_config=spaces.observation_config())
-    spaces.sensor().prepare_state(behavior.environment_state)
-    agent = GymAgent(action=spaces.action_config(), observation=spaces.observation_config(),
-                     behavior=behavior)
-    items: gym.spaces.Dict = agent.observation_config._item_space
     layout, start = {}, 0
-    for key, space in items.items():
-        n = gym.spaces.flatdim(space)
+    for key, n in fields():
         layout[key] = slice(start, start + n)
         start += n
-    assert start == agent.observation_space.shape[-1]
-    return start, int(np.prod(agent.action_space.shape)), layout
+    assert start == OBSERVATION_SIZE
+    return start, ACTION_SIZE, layout
 
 
 def goal_weights(forward: float = 0.8, turn: float = 1.5) -> tuple[np.ndarray, np.ndarray]:

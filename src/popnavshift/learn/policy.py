@@ -12,12 +12,13 @@ cards and cache; worker processes and Ray workers load the file by its absolute 
 changed file has another hash, so another id and its own runs, and an id whose file has
 changed since is refused rather than run with the new file.
 
-The robot runs navground-learning's ``PolicyBehavior`` with the observation and action
-configuration of :mod:`popnavshift.learn.spaces` and that module's sensor (attached
-through the factory's ``state_estimations``, :func:`popnavshift.sim.world.controller_sensing`)
-— the very configuration the environment trains with. Inference is deterministic: ONNX
-Runtime on one thread, sequential execution, the CPU provider; a Stable-Baselines3 policy
-with ``deterministic=True`` on one torch thread. Every problem with a file (missing, not a
+The robot runs :class:`PolicyBehavior`, a navground behaviour that observes and acts
+exactly as the environment trains (:class:`popnavshift.learn.spaces.PolicySpaces`: the
+bounded sensing every controller gets, the observation of 47 values, the action as
+fractions of the cell's caps) and asks the policy — a navground-learning
+``PolicyPredictor`` — for its action. Inference is deterministic: ONNX Runtime on one
+thread, sequential execution, the CPU provider; a Stable-Baselines3 policy with
+``deterministic=True`` on one torch thread. Every problem with a file (missing, not a
 model, the wrong observation or action shape, a zip without torch installed) is one
 :class:`ConfigError` line, raised when the controller is made: before anything runs.
 """
@@ -29,22 +30,18 @@ import json
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, cast
+from typing import Any, Protocol, SupportsFloat
 
 import numpy as np
-from navground import core, sim
+from navground import core
 
 from ..controller_ids import POLICY, POLICY_SUFFIXES, controller_id, file_sha256
 from ..errors import ConfigError
 from ..hashing import digest
-from ..sim.constants import ROBOT_RADIUS, WHEEL_AXIS
 
 LEARN_HINT = "pip install -e '.[learn]'"
 try:
-    from navground.learning.behaviors.policy import PolicyBehavior
-    from navground.learning.internal.group import GymAgent
-
-    from . import spaces
+    from .spaces import ACTION_SIZE, OBSERVATION_SIZE, PolicySpaces
 except ImportError as _exc:  # the learn extra is not installed
     raise ConfigError(f"learned policies need navground-learning ({_exc.name} is not "
                       "installed)", hint=LEARN_HINT) from None
@@ -52,24 +49,43 @@ except ImportError as _exc:  # the learn extra is not installed
 Shape = tuple[int, ...]
 
 
+class Predictor(Protocol):
+    """navground-learning's ``PolicyPredictor``: an observation → (action, state)."""
+
+    def predict(self, observation: Any, state: Any = None, episode_start: Any = None,
+                deterministic: bool = True) -> tuple[np.ndarray, Any]: ...
+
+
+class PolicyBehavior(core.Behavior):
+    """The robot's navground behaviour under a learned policy: at each step the observation
+    of :class:`.spaces.PolicySpaces` from its bounded sensing (a ``GeometricState``, which
+    the world fills as for every controller), the policy's deterministic action, and the
+    feasible command of that action. Not registered as a navground type: it needs its
+    policy (:class:`PolicyController` builds it)."""
+
+    def __init__(self, kinematics: core.Kinematics | None = None, radius: float = 0.0,
+                 policy: Predictor | None = None) -> None:
+        super().__init__(kinematics, radius)
+        self._state = core.GeometricState()
+        self._policy = policy
+        self._spaces: PolicySpaces | None = None  # made on the first command: the caps
+
+    def get_environment_state(self) -> core.EnvironmentState:
+        return self._state
+
+    def compute_cmd_internal(self, time_step: SupportsFloat) -> core.Twist2:
+        if self._policy is None:
+            raise ConfigError("PolicyBehavior has no policy")
+        if self._spaces is None:
+            self._spaces = PolicySpaces(self)
+        observation = self._spaces.observe(self, self._state)
+        action, _ = self._policy.predict(observation, deterministic=True)
+        return self._spaces.command(action, self, float(time_step))
+
+
 def policy_shapes() -> tuple[Shape, Shape]:
-    """The (observation, action) shapes of a PopNavShift policy: :mod:`.spaces`'
-    configuration on the study's robot (its radius and wheel axis; the shapes do not
-    depend on the cell's speed)."""
-    kin = core.kinematics.TwoWheelsDifferentialDriveKinematics(max_speed=1.0,
-                                                               wheel_axis=WHEEL_AXIS)
-    behavior = PolicyBehavior(kin, ROBOT_RADIUS, action_config=spaces.action_config(),
-                              observation_config=spaces.observation_config())
-    state = behavior.environment_state
-    assert isinstance(state, core.SensingState)
-    spaces.sensor().prepare_state(state)
-    agent = GymAgent(action=behavior._action_config,
-                     observation=behavior._observation_config, behavior=behavior)
-    obs, act = agent.observation_space.shape, agent.action_space.shape
-    if obs is None or act is None:  # a Dict space: spaces.py must configure a flat one
-        raise ConfigError("popnavshift.learn.spaces configures a structured observation or "
-                          "action; policies take flat arrays")
-    return tuple(obs), tuple(act)
+    """The (observation, action) shapes of a PopNavShift policy (:mod:`.spaces`)."""
+    return (OBSERVATION_SIZE,), (ACTION_SIZE,)
 
 
 class OnnxPredictor:
@@ -215,9 +231,11 @@ def load_predictor(path: Path, sha256: str) -> OnnxPredictor | SB3Predictor:
 
 
 def spaces_stamp() -> str:
-    """A digest of :mod:`.spaces`' source: the configuration a policy runs under is part of
-    its description, so editing it reruns a policy's runs (the code stamp covers only this
-    module's source)."""
+    """A digest of :mod:`.spaces`' source: the observation and action a policy runs under
+    are part of its description, so editing them reruns a policy's runs (the code stamp
+    covers only this module's source)."""
+    from . import spaces
+
     return digest(inspect.getsource(spaces))[:16]
 
 
@@ -245,16 +263,9 @@ class PolicyController:
         self.predictor = load_predictor(path, actual)
 
     def build(self, kinematics: core.Kinematics, radius: float, speed: float) -> core.Behavior:
-        behavior = PolicyBehavior(kinematics, radius, policy=cast(Any, self.predictor),
-                                  action_config=spaces.action_config(),
-                                  observation_config=spaces.observation_config(),
-                                  deterministic=True)
+        behavior = PolicyBehavior(kinematics, radius, self.predictor)
         behavior.optimal_speed = speed
         return behavior
-
-    def state_estimations(self, behavior: core.Behavior) -> list[sim.Sensor]:
-        """The policy's sensor (:mod:`.spaces`), a new one per robot."""
-        return [spaces.sensor()]
 
     def after_placement(self, behavior: core.Behavior, dt: float) -> None:
         """Nothing: the behaviour configures itself on its first command."""
