@@ -185,6 +185,8 @@ BAD = {
     "wrong_output": (_wrong_output, "a PopNavShift action is 2"),
     "zip": (_zip_without_data, "not a Stable-Baselines3 model zip" if HAS_SB3
             else "pip install -e '.[learn]'"),
+    "not_zip": (_text("model.zip"), "not a Stable-Baselines3 model zip" if HAS_SB3
+                else "pip install -e '.[learn]'"),
 }
 
 

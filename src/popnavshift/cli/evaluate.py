@@ -231,11 +231,12 @@ def leaderboard(
 
     Each controller is evaluated as `evaluate` does (cached runs and current cards are
     reused; a new controller runs on the study's populations and their nulls) and the rows
-    are written as one page with CSV, Markdown and a LaTeX table for a paper. Two
-    navground names are left out: the empty name (the base Behavior) and PyDummy (the same
-    motion as Dummy).
+    are written as one page with CSV, Markdown and a LaTeX table for a paper. Some
+    navground names are left out: the empty name (the base Behavior), PyDummy (the same
+    motion as Dummy) and navground-learning's Policy and GroupPolicy (no policy of their
+    own: name a policy by its file).
 
-    Example: popnavshift leaderboard my_pkg.controller:MyBehavior
+    Example: popnavshift leaderboard my_pkg.controller:MyBehavior policy.onnx
     """
     extra = named(*(extra or ()))
     check_controllers(*extra)  # a misspelt name fails at once

@@ -26,7 +26,6 @@ model, the wrong observation or action shape, a zip without torch installed) is 
 from __future__ import annotations
 
 import inspect
-import json
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
@@ -154,30 +153,39 @@ class OnnxPredictor:
 
 SPACES_HINT = ("train it on popnavshift.learn's environment, whose observation and action "
                "are popnavshift.learn.spaces' (docs/learning.md)")
-#: the Stable-Baselines3 algorithms whose model zips load, by the package of their policy
-SB3_ALGORITHMS = ("PPO", "SAC", "TD3", "A2C", "DDPG", "DQN")
-
-
 class SB3Predictor:
-    """A Stable-Baselines3 model's policy as a ``PolicyPredictor``: deterministic actions,
-    on one torch thread."""
+    """The policy of a Stable-Baselines3 model zip (``model.save``, any algorithm) as a
+    ``PolicyPredictor``: deterministic actions, on one torch thread. Only the policy is
+    rebuilt (its class, spaces and keyword arguments as the zip records them, and its
+    weights), not the algorithm."""
 
     def __init__(self, path: Path) -> None:
         try:
-            import stable_baselines3
             import torch
+            from stable_baselines3.common.save_util import load_from_zip_file
         except ImportError as exc:
             raise ConfigError(f"policy file {path} is a Stable-Baselines3 model zip: running "
                               f"it needs torch and stable-baselines3 ({exc.name} is not "
                               "installed)", hint=LEARN_HINT) from None
-        algorithm = _sb3_algorithm(path)
+        if not zipfile.is_zipfile(path):
+            raise ConfigError(f"policy file {path} is not a Stable-Baselines3 model zip (not "
+                              "a zip archive)", hint="save the model with model.save(path)")
         torch.set_num_threads(1)
         try:
-            model = getattr(stable_baselines3, algorithm).load(str(path), device="cpu")
-        except Exception as exc:
-            raise ConfigError(f"policy file {path}: Stable-Baselines3 cannot load it as "
-                              f"{algorithm}: {_first_line(exc)}") from None
-        self.policy = model.policy
+            data, params, _ = load_from_zip_file(path, device="cpu", print_system_info=False)
+            if data is None:
+                raise ValueError("no 'data' record")
+            cls = data["policy_class"]
+            kwargs = dict(data.get("policy_kwargs") or {})
+            if "use_sde" in data and "use_sde" in inspect.signature(cls).parameters:
+                kwargs.setdefault("use_sde", data["use_sde"])
+            self.policy = cls(data["observation_space"], data["action_space"],
+                              lambda _: 0.0, **kwargs)
+            self.policy.load_state_dict(params["policy"])
+        except Exception as exc:  # a zip model.save did not write, or of another version
+            raise ConfigError(f"policy file {path} is not a Stable-Baselines3 model zip it can "
+                              f"load: {type(exc).__name__}: {_first_line(exc)}",
+                              hint="save the model with model.save(path)") from None
         self.policy.set_training_mode(False)
 
     def predict(self, observation: Any, state: Any = None, episode_start: Any = None,
@@ -189,28 +197,9 @@ class SB3Predictor:
     def check(self, path: Path, obs: Shape, act: Shape) -> None:
         got = (self.policy.observation_space.shape, self.policy.action_space.shape)
         if got != (obs, act):
-            raise ConfigError(f"policy file {path} observes {_shape(got[0])} and acts "
+            raise ConfigError(f"policy file {path} observes {_shape(got[0])} values and acts "
                               f"{_shape(got[1])}; a PopNavShift policy observes {_shape(obs)} "
                               f"and acts {_shape(act)}", hint=SPACES_HINT)
-
-
-def _sb3_algorithm(path: Path) -> str:
-    """The algorithm of a Stable-Baselines3 model zip, from its ``data`` record (the
-    package of its policy class, e.g. ``stable_baselines3.sac.policies`` → SAC)."""
-    try:
-        with zipfile.ZipFile(path) as archive:
-            data = json.loads(archive.read("data"))
-    except (zipfile.BadZipFile, KeyError, ValueError, OSError):
-        raise ConfigError(f"policy file {path} is not a Stable-Baselines3 model zip (no "
-                          "readable 'data' record)",
-                          hint="save the model with model.save(path)") from None
-    module = str((data.get("policy_class") or {}).get("__module__", ""))
-    parts = module.split(".")
-    name = parts[1].upper() if len(parts) > 2 and parts[0] == "stable_baselines3" else ""
-    if name not in SB3_ALGORITHMS:
-        raise ConfigError(f"policy file {path}: its policy class is from {module or '?'}; "
-                          f"the algorithms that load are {', '.join(SB3_ALGORITHMS)}")
-    return name
 
 
 #: the predictors loaded in this process, by file and content hash: a study makes the
