@@ -199,6 +199,19 @@ def test_a_bad_policy_file_is_one_line_and_exit_2(case, tmp_path):
     assert not (tmp_path / "study").exists()  # refused before any folder is made
 
 
+@pytest.mark.parametrize("command", ["compare", "leaderboard"])
+def test_compare_and_the_leaderboard_take_policy_files_and_refuse_a_bad_one(command, policy,
+                                                                          tmp_path):
+    from popnavshift.design.study import load_study
+    from popnavshift.evaluate.leaderboard import leaderboard_controllers
+
+    assert policy_id(str(policy)) in leaderboard_controllers(load_study("quick"), [str(policy)])
+    bad = _text("notes.onnx")(tmp_path)
+    proc = cli(command, str(policy), str(bad), "--study", "quick", "-d", str(tmp_path / "s"))
+    assert_one_line_error(proc, "is not an ONNX model", "notes.onnx")
+    assert not (tmp_path / "s").exists()
+
+
 @pytest.mark.skipif(not HAS_SB3, reason="torch and stable-baselines3 are not installed "
                     "(pip install -e '.[learn]'): the Stable-Baselines3 zip is not tested")
 def test_a_stable_baselines3_zip_runs_deterministically(tmp_path):

@@ -93,6 +93,14 @@ def policy_id(spec: str) -> str:
                                   "sha256": sha[:POLICY_HASH_DIGITS]})
 
 
+def named_controller(spec: str) -> str:
+    """The canonical controller id of a controller as a user names it: a policy file
+    (``*.onnx``, ``*.zip``) as :func:`policy_id`, a name with parameters in canonical
+    JSON (``HRVO{ "tau": 0.5 }`` → ``HRVO{"tau":0.5}``)."""
+    return policy_id(spec) if is_policy_file(spec) else controller_id(
+        *parse_controller_id(spec))
+
+
 def policy_file(identity: str) -> tuple[str, str] | None:
     """(file, sha256 digits) of a policy's id; None when ``identity`` is not a policy's."""
     if not identity.startswith(POLICY + "{"):

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..controller_ids import controller_id, parse_controller_id
+from ..controller_ids import named_controller
 from ..design.study import Study
 from .compare import Comparison, Log, compare
 from .run import BASELINES
@@ -54,7 +54,7 @@ def leaderboard_controllers(study: Study, extra: Sequence[str] = ()) -> tuple[st
     navground behaviour type, then ``extra``; each controller id once."""
     main = study.parts[study.require_main()[0]].controllers
     names = [*main, *navground_controllers(), *extra]
-    return tuple(dict.fromkeys(controller_id(*parse_controller_id(n)) for n in names))
+    return tuple(dict.fromkeys(named_controller(n) for n in names))
 
 
 def build_leaderboard(extra: Sequence[str], study: Study, base_folder: Path, *,
