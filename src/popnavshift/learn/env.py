@@ -10,7 +10,8 @@ and metrics — with a robot whose command comes from :meth:`PopNavShiftEnv.step
 * **Episode.** ``reset(seed=s)`` picks one of the study part's episodes (cells × variants)
   with the environment's generator seeded by ``s`` (or ``options={"episode": id}`` names
   it); the episode itself is drawn with the *study's* seed (``get_episode(id,
-  seed=study.seed)``) and its slots are filled from the population's members as the
+  seed=study.seed)``; ``episode_seed=k`` draws another seed set of the same cells) and
+  its slots are filled from the population's members as the
   study's workers fill them (:func:`popnavshift.engine.rebuild.population_members`,
   :func:`popnavshift.sim.slots.profiles_of_members`). So an episode with the study's id
   is the study's run of that id, pedestrian for pedestrian.
@@ -213,11 +214,14 @@ class PopNavShiftEnv(gym.Env):
     def __init__(self, study: Study, members: tuple[np.ndarray, list[str]],
                  episodes: list[str], *, population: str, expert: str = "robot_orca",
                  backend: str = "orca", reward: Reward | None = None,
-                 record: bool = False) -> None:
+                 record: bool = False, episode_seed: int | None = None) -> None:
         self.study, self.members, self.episode_ids = study, members, list(episodes)
         self.population, self.expert, self.backend = population, expert, backend
         self.reward_spec = reward or Reward()
         self.record = record
+        #: the seed the episodes are drawn with: the study's (its runs), or another
+        #: seed set of the same cells (e.g. to train on other worlds than a study tests on)
+        self.episode_seed = study.seed if episode_seed is None else int(episode_seed)
         resolve_controller(expert)  # an unknown expert fails here
         spaces = _unit_spaces()
         self.observation_space = spaces.observation_space
@@ -233,7 +237,7 @@ class PopNavShiftEnv(gym.Env):
         episode = (options or {}).get("episode")
         if episode is None:
             episode = self.episode_ids[int(self.np_random.integers(len(self.episode_ids)))]
-        spec = get_episode(str(episode), seed=self.study.seed)
+        spec = get_episode(str(episode), seed=self.episode_seed)
         slots = profiles_of_members(spec, *self.members)
         self._spec = spec
         self._episode = _Episode(spec, slots, self.expert, self.backend, self.record)
@@ -302,8 +306,9 @@ def make_env(study: str | Path | Study = "quick", population: str = "homogeneous
     ``population`` (profile set ``mapping``), its members read from ``folder``'s
     populations table — built there with the study's settings if it is missing, as
     ``popnavshift simulate`` does. ``episodes`` narrows the episode ids (default: every
-    episode of the part at the study's seed). Other keywords: :class:`PopNavShiftEnv`
-    (``expert``, ``backend``, ``reward``, ``record``)."""
+    episode of the part). Other keywords: :class:`PopNavShiftEnv` (``expert``,
+    ``backend``, ``reward``, ``record``, ``episode_seed``: draw the same cells and
+    variants with another seed than the study's)."""
     st = study if isinstance(study, Study) else load_study(study)
     if part is None:
         part = st.require_main()[0]
