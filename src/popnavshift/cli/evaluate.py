@@ -8,6 +8,7 @@ from typing import Annotated
 
 import typer
 
+from ..errors import ConfigError
 from ..progress import console
 from .app import (
     MAX_WORKERS,
@@ -125,6 +126,9 @@ def evaluate(
         check_out(out, study_dir or default_dir)
     base = folder(study_dir or default_dir)
     params = parse_params(param)
+    if params and "{" in controller:
+        raise ConfigError(f"controller {controller} takes no --param: its parameters are in "
+                          "its name (a policy file's are its path and hash)")
     identity = controller_id(controller, params) if params else controller
     names = BASELINES if given is None else given
     with study_lock(base):  # the baseline study's folder gets runs and the card: one writer
