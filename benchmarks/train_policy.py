@@ -10,8 +10,9 @@ For each training population (default ``homogeneous`` and ``mixed``) this
 2. trains a 2×64 MLP by imitation of a navground controller (``--expert``, default
    ``robot_orca``) with DAgger: round 0 the expert drives, then the policy drives and the
    expert labels every state it visits (``info["navground_action"]``); after each round
-   the policy is fitted (mean squared error) on everything gathered so far. The MLP is a
-   Stable-Baselines3 PPO policy's actor, so the result is also an SB3 model zip;
+   the policy is fitted (mean squared error) on everything gathered so far. The policy
+   kept is the one that drove best in training (its success on the training episodes);
+   the MLP is a Stable-Baselines3 PPO policy's actor, so it is also an SB3 model zip;
 3. saves ``policy_<population>.zip`` (Stable-Baselines3) and ``policy_<population>.onnx``
    (the deterministic actor: input ``observation`` (batch, 47), output ``action``
    (batch, 2), the layout of ``popnavshift.learn.spaces``), and prints its training time;
@@ -36,6 +37,7 @@ initialisation, the minibatches. Prints the machine's load before and after.
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import os
 import platform
@@ -130,15 +132,25 @@ def train(population: str, args: argparse.Namespace, folder: Path, out: Path) ->
     states = np.zeros((0, env.observation_space.shape[0]), np.float32)
     labels = np.zeros((0, 2), np.float32)
     rounds = []
+    fitted: list[dict] = []  # the weights fitted after each round
     for k in range(args.rounds + 1):
         s, a, outcomes = _rollouts(env, actor, args.episodes, rng, expert_drives=k == 0)
         states, labels = np.concatenate([states, s]), np.concatenate([labels, a])
-        loss = _fit(actor, states, labels, args.epochs, rng)
         success = outcomes.count("success") / len(outcomes)
+        loss = _fit(actor, states, labels, args.epochs, rng)
+        fitted.append(copy.deepcopy(actor.state_dict()))
         rounds.append({"round": k, "driver": "expert" if k == 0 else "policy",
                        "success": success, "samples": len(states), "loss": loss})
         print(f"  {population} round {k} ({rounds[-1]['driver']} drives): success "
-              f"{success:.0%}, {len(states)} samples, loss {loss:.4f}", flush=True)
+              f"{success:.0%}; fitted on {len(states)} samples, loss {loss:.4f}", flush=True)
+    # keep the policy that drove best in training (the weights fitted before that round;
+    # the last fit has not driven yet: it is kept only if no policy round did better than 0)
+    best = max(range(1, args.rounds + 1), key=lambda k: (rounds[k]["success"], k),
+               default=None)
+    if best is not None:
+        actor.load_state_dict(fitted[best - 1])
+        print(f"  {population}: kept the policy of round {best} "
+              f"({rounds[best]['success']:.0%} success in training)", flush=True)
     seconds = time.perf_counter() - start
     env.close()
     zip_path, onnx_path = out / f"policy_{population}.zip", out / f"policy_{population}.onnx"
@@ -150,7 +162,7 @@ def train(population: str, args: argparse.Namespace, folder: Path, out: Path) ->
                        dynamic_axes={"observation": {0: "batch"}, "action": {0: "batch"}},
                        opset_version=17)
     print(f"{population}: trained in {seconds:.1f} s -> {onnx_path}, {zip_path}", flush=True)
-    return {"population": population, "seconds": seconds, "rounds": rounds,
+    return {"population": population, "seconds": seconds, "rounds": rounds, "kept": best,
             "onnx": str(onnx_path), "zip": str(zip_path)}
 
 
@@ -221,8 +233,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--populations", nargs="+", default=["homogeneous", "mixed"],
                     help="training populations (one policy each)")
     ap.add_argument("--expert", default="robot_orca", help="the controller imitated")
-    ap.add_argument("--rounds", type=int, default=4, help="DAgger rounds after round 0")
-    ap.add_argument("--episodes", type=int, default=40, help="episodes per round")
+    ap.add_argument("--rounds", type=int, default=8, help="DAgger rounds after round 0")
+    ap.add_argument("--episodes", type=int, default=50, help="episodes per round")
     ap.add_argument("--epochs", type=int, default=20, help="epochs per fit")
     ap.add_argument("--train-seed", type=int, default=1, help="episode seed of training")
     ap.add_argument("--test-episodes", type=int, default=40,

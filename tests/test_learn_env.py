@@ -234,3 +234,69 @@ def test_an_action_is_a_fraction_of_the_cells_caps():
     # outside [-1, 1] is clipped; navground keeps the turn and cuts the speed
     full = ps.command([3.0, 1.0], behavior, 0.1)
     assert full.angular_speed == pytest.approx(2.4) and full.velocity[0] == pytest.approx(0.0)
+
+
+def _linear_onnx(path: Path) -> None:
+    """A tiny ONNX policy: action = clip(W · observation + b) with fixed weights that
+    head towards the goal and away from the nearest pedestrian (no training, no torch)."""
+    import onnx
+    from onnx import TensorProto, helper
+
+    layout = dict(spaces.observation_layout())
+    offset = {name: sum(size for n, size in spaces.observation_layout()[:i])
+              for i, (name, _) in enumerate(spaces.observation_layout())}
+    assert sum(layout.values()) == spaces.OBSERVATION_SIZE
+    w = np.zeros((spaces.OBSERVATION_SIZE, 2), np.float32)
+    w[offset["ego_target_direction"], 0] = 0.8   # forward when the goal is ahead
+    w[offset["ego_target_direction"] + 1, 1] = 1.5  # turn towards it
+    w[offset["pedestrians_position"] + 1, 1] = -0.6  # turn away from the nearest one
+    b = np.array([0.1, 0.0], np.float32)
+    graph = helper.make_graph(
+        [helper.make_node("MatMul", ["observation", "W"], ["xw"]),
+         helper.make_node("Add", ["xw", "b"], ["raw"]),
+         helper.make_node("Clip", ["raw", "lo", "hi"], ["action"])],
+        "linear", [helper.make_tensor_value_info("observation", TensorProto.FLOAT, ["n", 47])],
+        [helper.make_tensor_value_info("action", TensorProto.FLOAT, ["n", 2])],
+        [helper.make_tensor("W", TensorProto.FLOAT, w.shape, w.flatten()),
+         helper.make_tensor("b", TensorProto.FLOAT, b.shape, b),
+         helper.make_tensor("lo", TensorProto.FLOAT, [], [-1.0]),
+         helper.make_tensor("hi", TensorProto.FLOAT, [], [1.0])])
+    onnx.save(helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)]), path)
+
+
+def test_a_policy_in_the_environment_is_the_policy_as_a_studys_controller(study, tmp_path):
+    """Training and evaluation see the same robot: an ONNX policy driving the environment
+    gives the run that `popnavshift evaluate policy.onnx` simulates (part B's controller,
+    popnavshift.learn.policy), outcome and metrics bit for bit."""
+    pytest.importorskip("popnavshift.learn.policy",
+                        reason="popnavshift.learn.policy (learned policies as controllers, "
+                               "branch learnctl) is not on this branch yet")
+    import onnxruntime as ort
+
+    from popnavshift.controller_ids import policy_id
+    from popnavshift.episodes.specs import get_episode
+    from popnavshift.sim.run import simulate
+    from popnavshift.sim.slots import profiles_of_members
+
+    path, folder = study
+    onnx_path = tmp_path / "linear.onnx"
+    _linear_onnx(onnx_path)
+    options = ort.SessionOptions()
+    options.intra_op_num_threads = options.inter_op_num_threads = 1
+    session = ort.InferenceSession(str(onnx_path), options, providers=["CPUExecutionProvider"])
+
+    def policy(obs, info):
+        return session.run(["action"], {"observation": obs[None]})[0][0]
+
+    env = make_env(str(path), "mixed", folder=folder)
+    outcomes = set()
+    for episode in env.episode_ids:
+        _, _, info = _play(env, episode, policy)
+        spec = get_episode(episode, seed=0)
+        ref = simulate(spec, profiles_of_members(spec, *env.members),
+                       policy_id(str(onnx_path)), "orca").run
+        for k in ref.keys() - {"controller"}:
+            assert _same(info["run"][k], ref[k]), (episode, k, info["run"][k], ref[k])
+        outcomes.add(info["outcome"])
+    env.close()
+    assert outcomes  # both episodes ran to an outcome
