@@ -199,6 +199,12 @@ def test_a_bad_policy_file_is_one_line_and_exit_2(case, tmp_path):
     assert not (tmp_path / "study").exists()  # refused before any folder is made
 
 
+@pytest.mark.parametrize("name", ["policy", 'policy{"file":"/tmp/x.onnx"}'])
+def test_the_bare_policy_name_says_how_to_name_a_policy(name):
+    with pytest.raises(ConfigError, match="needs its file and hash.*evaluate policy.onnx"):
+        CONTROLLERS.make(name)
+
+
 @pytest.mark.parametrize("command", ["compare", "leaderboard"])
 def test_compare_and_the_leaderboard_take_policy_files_and_refuse_a_bad_one(command, policy,
                                                                           tmp_path):

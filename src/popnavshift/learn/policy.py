@@ -232,7 +232,11 @@ class PolicyController:
     """Controller factory of a policy file (module doc); ``file`` an absolute path,
     ``sha256`` the first hex digits of its sha256 (its id's parameters)."""
 
-    def __init__(self, file: str, sha256: str) -> None:
+    def __init__(self, file: str = "", sha256: str = "") -> None:
+        if not file or not sha256:
+            raise ConfigError("controller 'policy' needs its file and hash",
+                              hint="name a policy by its file: popnavshift evaluate "
+                                   "policy.onnx")
         path = Path(file)
         kind = POLICY_SUFFIXES.get(path.suffix.lower())
         if kind is None:
