@@ -26,7 +26,7 @@ LAYERS: tuple[frozenset[str], ...] = (
     # finished study folder never imports them (nor navground)
     frozenset({"sim"}),
     frozenset({"engine"}),
-    frozenset({"report", "evaluate"}),
+    frozenset({"report", "evaluate", "learn"}),
     frozenset({"cli"}),
     frozenset({"__main__", ""}),  # "" = the package's __init__
 )

@@ -282,3 +282,15 @@ def test_llm_settings_are_declared_once_and_taken_by_every_llm_respondent():
         assert (made.timeout, made.max_retries, made.deadline) == (7.5, 0, None)
     with pytest.raises(ConfigError, match="did you mean 'max_retries'"):
         RESPONDENTS.make("openai", max_retry=3)
+
+
+def test_a_missing_required_parameter_is_named_not_a_traceback():
+    from popnavshift.registry import call_checked
+
+    def factory(tau: float, horizon: float = 5.0) -> None:
+        return None
+
+    with pytest.raises(ConfigError, match="'x' needs the parameter tau$"):
+        call_checked("controller", "x", factory, {})
+    with pytest.raises(ConfigError, match="takes no parameter 'k'; parameters: tau, horizon"):
+        call_checked("controller", "x", factory, {"k": 1})

@@ -206,7 +206,15 @@ def call_checked(kind: str, name: str, factory: Callable[..., T], kwargs: dict) 
             for p, v in signature.parameters.items()
             if v.kind in (v.KEYWORD_ONLY, v.POSITIONAL_OR_KEYWORD)
         ]
-        bad = [k for k in kwargs if k not in accepted] or list(kwargs)
+        bad = [k for k in kwargs if k not in accepted]
+        missing = [p for p, v in signature.parameters.items() if p not in kwargs
+                   and v.default is v.empty and v.kind in (v.KEYWORD_ONLY,
+                                                          v.POSITIONAL_OR_KEYWORD)]
+        if not bad and missing:  # a required parameter not given
+            raise ConfigError(f"{kind} {name!r} needs the parameter"
+                              f"{'s' if len(missing) > 1 else ''} {', '.join(missing)}"
+                              ) from None
+        bad = bad or list(kwargs) or [""]
         close = difflib.get_close_matches(bad[0], accepted, n=1)
         raise ConfigError(
             f"{kind} {name!r} takes no parameter {bad[0]!r}; parameters: "

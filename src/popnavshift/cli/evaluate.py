@@ -8,6 +8,7 @@ from typing import Annotated
 
 import typer
 
+from ..errors import ConfigError
 from ..progress import console
 from .app import (
     MAX_WORKERS,
@@ -52,8 +53,10 @@ def evaluate(
         str,
         typer.Argument(
             help="A registered controller or navground behavior type (HRVO, SocialForce, …), "
-            "an entry point of the popnavshift.controllers group, or a Python class "
-            "package.module:Class subclassing navground.core.Behavior."
+            "an entry point of the popnavshift.controllers group, a Python class "
+            "package.module:Class subclassing navground.core.Behavior, or a learned policy "
+            "file: policy.onnx or a Stable-Baselines3 model.zip (docs/evaluate-your-"
+            "controller.md)."
         ),
     ],
     study: BaselineStudy = None,
@@ -99,10 +102,16 @@ def evaluate(
     in card.json and every table it shows as CSV.
 
     Example: popnavshift evaluate my_pkg.controller:MyBehavior --study quick
+
+    A learned policy is named by its file (popnavshift evaluate policy.onnx): its
+    controller id holds the file's absolute path and sha256, so a changed file is
+    another controller with runs of its own.
     """
-    given = None if baselines is None else tuple(
-        b.strip() for b in baselines.split(",") if b.strip())
+    given = None if baselines is None else tuple(named(
+        *(b.strip() for b in baselines.split(",") if b.strip())))
+    controller = named(controller)[0]
     check_controllers(controller, *(given or ()))  # a misspelt name fails at once
+    check_policies(controller, *(given or ()))
     from ..controller_ids import controller_id
     from ..engine.lock import study_lock
     from ..engine.ownership import claim_folder
@@ -117,6 +126,9 @@ def evaluate(
         check_out(out, study_dir or default_dir)
     base = folder(study_dir or default_dir)
     params = parse_params(param)
+    if params and "{" in controller:
+        raise ConfigError(f"controller {controller} takes no --param: its parameters are in "
+                          "its name (a policy file's are its path and hash)")
     identity = controller_id(controller, params) if params else controller
     names = BASELINES if given is None else given
     with study_lock(base):  # the baseline study's folder gets runs and the card: one writer
@@ -149,7 +161,8 @@ def compare(
     controllers: Annotated[
         list[str],
         typer.Argument(help="Controllers to put side by side: any name `evaluate` takes "
-                       "(reactive, early_yield, robot_orca, HRVO, package.module:Class, …)."),
+                       "(reactive, early_yield, robot_orca, HRVO, package.module:Class, "
+                       "policy.onnx, model.zip, …)."),
     ],
     study: BaselineStudy = None,
     study_dir: Annotated[
@@ -183,7 +196,9 @@ def compare(
 
     Example: popnavshift compare reactive early_yield robot_orca HRVO
     """
+    controllers = named(*controllers)
     check_controllers(*controllers)  # a misspelt name fails at once
+    check_policies(*controllers)
     _side_by_side(controllers, study, study_dir, out, "compare", workers=workers, n_boot=n_boot,
                   seed=seed, safety_threshold=safety_threshold, baselines=baselines,
                   replicates=replicates, seed_sets=seed_sets)
@@ -193,9 +208,9 @@ def compare(
 def leaderboard(
     extra: Annotated[
         list[str] | None,
-        typer.Argument(help="Plug-ins or package.module:Class controllers to add to the "
-                       "rows (the study's controllers and every navground behaviour are "
-                       "always in)."),
+        typer.Argument(help="Plug-ins, package.module:Class controllers or learned policy "
+                       "files (policy.onnx, model.zip) to add to the rows (the study's "
+                       "controllers and every navground behaviour are always in)."),
     ] = None,
     study: BaselineStudy = None,
     study_dir: Annotated[
@@ -220,14 +235,17 @@ def leaderboard(
 
     Each controller is evaluated as `evaluate` does (cached runs and current cards are
     reused; a new controller runs on the study's populations and their nulls) and the rows
-    are written as one page with CSV, Markdown and a LaTeX table for a paper. Two
-    navground names are left out: the empty name (the base Behavior) and PyDummy (the same
-    motion as Dummy).
+    are written as one page with CSV, Markdown and a LaTeX table for a paper. Some
+    navground names are left out: the empty name (the base Behavior), PyDummy (the same
+    motion as Dummy) and navground-learning's Policy and GroupPolicy (no policy of their
+    own: name a policy by its file).
 
-    Example: popnavshift leaderboard my_pkg.controller:MyBehavior
+    Example: popnavshift leaderboard my_pkg.controller:MyBehavior policy.onnx
     """
-    check_controllers(*(extra or ()))  # a misspelt name fails at once
-    _side_by_side(tuple(extra or ()), study, study_dir, out, "leaderboard", workers=workers,
+    extra = named(*(extra or ()))
+    check_controllers(*extra)  # a misspelt name fails at once
+    check_policies(*extra)
+    _side_by_side(tuple(extra), study, study_dir, out, "leaderboard", workers=workers,
                   n_boot=n_boot, seed=seed, safety_threshold=safety_threshold, baselines=None,
                   replicates=replicates, seed_sets=seed_sets)
 
@@ -271,7 +289,31 @@ def _baselines(option: str | None, default: tuple[str, ...]) -> tuple[str, ...]:
     """``--baselines a,b`` as names (the default when not given)."""
     if option is None:
         return default
-    return tuple(b.strip() for b in option.split(",") if b.strip())
+    return tuple(named(*(b.strip() for b in option.split(",") if b.strip())))
+
+
+def named(*specs: str) -> list[str]:
+    """The controllers named on the command line, a policy file (``*.onnx``, ``*.zip``) as
+    its controller id (its absolute path and content hash,
+    :func:`popnavshift.controller_ids.policy_id`; a missing file is one line)."""
+    from ..controller_ids import is_policy_file, policy_id
+
+    return [policy_id(s) if is_policy_file(s) else s for s in specs]
+
+
+def check_policies(*identities: str) -> None:
+    """Load every learned policy among ``identities`` once, before any folder is touched:
+    a file that is not a model, or whose observation or action is not a PopNavShift
+    policy's, or a zip without torch installed, is one line here
+    (:mod:`popnavshift.learn.policy`). Other controllers are made where they run."""
+    from ..controller_ids import policy_file
+
+    policies = [i for i in identities if policy_file(i) is not None]
+    if policies:
+        from ..sim.controllers import CONTROLLERS
+
+        for identity in policies:
+            CONTROLLERS.make(identity)
 
 
 MADE_STUDY = Path("study")  # where `make run` writes the paper study

@@ -24,7 +24,7 @@ from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..controller_ids import controller_id, parse_controller_id
+from ..controller_ids import POLICY, controller_id, parse_controller_id, policy_file
 from ..errors import ConfigError
 from ..hashing import digest, sources_digest
 from ..outputs import check_writable
@@ -37,8 +37,11 @@ if TYPE_CHECKING:
 
 def slug(identity: str) -> str:
     """A folder name for a controller id: letters, digits, ``_``, ``.`` and ``-`` only, never
-    starting with a dot (so never ``.`` or ``..``); a short hash keeps distinct ids apart."""
-    s = re.sub(r"[^A-Za-z0-9_.-]+", "-", identity).strip("-.")[:60].strip("-.") or "controller"
+    starting with a dot (so never ``.`` or ``..``); a short hash keeps distinct ids apart. A
+    policy's id (its file's absolute path and hash) is named by the file's name and hash."""
+    policy = policy_file(identity)
+    text = identity if policy is None else f"{POLICY}-{Path(policy[0]).name}-{policy[1]}"
+    s = re.sub(r"[^A-Za-z0-9_.-]+", "-", text).strip("-.")[:60].strip("-.") or "controller"
     return s if s == identity else f"{s}-{digest(identity)[:8]}"
 
 

@@ -18,6 +18,7 @@ from jinja2 import Environment, select_autoescape
 from markupsafe import Markup
 
 from ..analysis import METRICS, TOLERANCES
+from ..controller_ids import policy_label
 from ..outputs import FileSet
 from ..populations.build import population_order
 from ..viz.style import controller_styles
@@ -43,7 +44,8 @@ def card_figure(card: Card):
         population_panel(ax, card.per_population, metric, ctrls, card.controller)
     axes.flat[0].legend(fontsize=8)
     _null_panel(axes.flat[3], card)
-    fig.suptitle(f"Population robustness of {card.controller}", fontsize=13)
+    fig.suptitle(f"Population robustness of {policy_label(card.controller) or card.controller}",
+                 fontsize=13)
     return fig
 
 
@@ -74,7 +76,8 @@ def population_panel(ax, per_population: pd.DataFrame, metric: str, controllers:
         look, mine = styles[ctrl], ctrl == highlight
         ax.scatter(x + (i - (len(controllers) - 1) / 2) * step,
                    s[metric].reindex(pops).to_numpy(float), marker=look.marker,
-                   s=60 if mine else 28, color=look.colour, label=ctrl, zorder=3 if mine else 2,
+                   s=60 if mine else 28, color=look.colour, label=policy_label(ctrl) or ctrl,
+                   zorder=3 if mine else 2,
                    edgecolors="black" if mine else "none", linewidths=1.2)
     ax.set_title(METRIC_LABELS[metric])
     ax.set_xticks(x, pops, rotation=30, ha="right", fontsize=8)

@@ -32,7 +32,7 @@ from ..analysis import cell_metrics, paired_delays
 from ..analysis.ranked import RANKED_NAMES
 from ..analysis.summary import OUTCOMES
 from ..analysis.verdicts import clopper_pearson
-from ..controller_ids import controller_id, parse_controller_id
+from ..controller_ids import named_controller
 from ..design.study import Study
 from ..errors import InputError
 from ..read.access import card_intact
@@ -176,7 +176,7 @@ def compare(controllers: Sequence[str], study: Study, base_folder: Path, *, work
     same identity, every file intact; else it is made again and ``log`` says why), then
     compare them all on the union of their runs (module doc)."""
     say = log or (lambda _msg: None)
-    ids = tuple(dict.fromkeys(controller_id(*parse_controller_id(c)) for c in controllers))
+    ids = tuple(dict.fromkeys(named_controller(c) for c in controllers))
     threshold = SAFETY_THRESHOLD if safety_threshold is None else safety_threshold
     check_card_settings(n_boot, seed, threshold)
     for c in (*ids, *baselines):  # every name must resolve before anything runs

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..controller_ids import controller_id, parse_controller_id
+from ..controller_ids import named_controller
 from ..design.study import Study
 from .compare import Comparison, Log, compare
 from .run import BASELINES
@@ -30,6 +30,11 @@ from .run import BASELINES
 NOT_CONTROLLERS: dict[str, str] = {
     "": "navground's base Behavior, registered under the empty name: no motion rule of its own",
     "PyDummy": "navground's example of a behaviour written in Python: the same motion as Dummy",
+    "Policy": "navground-learning's policy behaviour, registered when it is imported: with no "
+              "policy of its own it does not move; a learned policy is a row by its file "
+              "(popnavshift leaderboard policy.onnx)",
+    "GroupPolicy": "navground-learning's policy behaviour for a group of agents: no policy "
+                   "of its own",
 }
 
 
@@ -49,7 +54,7 @@ def leaderboard_controllers(study: Study, extra: Sequence[str] = ()) -> tuple[st
     navground behaviour type, then ``extra``; each controller id once."""
     main = study.parts[study.require_main()[0]].controllers
     names = [*main, *navground_controllers(), *extra]
-    return tuple(dict.fromkeys(controller_id(*parse_controller_id(n)) for n in names))
+    return tuple(dict.fromkeys(named_controller(n) for n in names))
 
 
 def build_leaderboard(extra: Sequence[str], study: Study, base_folder: Path, *,

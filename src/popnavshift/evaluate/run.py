@@ -40,7 +40,7 @@ import pandas as pd
 
 from ..analysis import episode_cells
 from ..analysis.replicates import seed_sets
-from ..controller_ids import controller_id, parse_controller_id
+from ..controller_ids import named_controller
 from ..design.study import Study, builtin_studies
 from ..engine.batch_plan import plan_batches, run_plan
 from ..engine.pending import pending_runs
@@ -151,7 +151,7 @@ def evaluate(
     """Run what is missing and return the evaluated part's tables (see the module doc)."""
     say = log or (lambda _msg: None)
     started = time.perf_counter()
-    identity = controller_id(*parse_controller_id(controller))
+    identity = named_controller(controller)
     if identity == NO_ROBOT:
         raise ConfigError("controller 'none' is the no-robot baseline; name a controller")
     factory = CONTROLLERS.make(identity)

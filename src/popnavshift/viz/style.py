@@ -16,6 +16,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import NamedTuple
 
+from ..controller_ids import policy_label
 from ..hashing import digest
 from ..paper import CONTROLLERS
 from ..tables import NO_ROBOT, NO_ROBOT_LABEL
@@ -55,8 +56,10 @@ def controller_style(name: str) -> Style:
 
 def controller_label(name: str) -> str:
     """How a page names controller ``name``: the paper's name for one of its controllers
-    (:data:`popnavshift.paper.CONTROLLERS`), ``no robot`` for the baselines, else its id."""
-    return LABELS.get(name, name)
+    (:data:`popnavshift.paper.CONTROLLERS`), ``no robot`` for the baselines, a policy file's
+    name and hash for a learned policy (:func:`popnavshift.controller_ids.policy_label`),
+    else its id."""
+    return LABELS.get(name) or policy_label(name) or name
 
 
 def _hash(name: str) -> int:

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from functools import partial
 
+from ...controller_ids import POLICY
 from .navground_type import NavgroundType, navground_types
 from .registry import CONTROLLERS
 
@@ -33,6 +34,10 @@ BUILTINS: dict[str, str] = {
     "early_yield": "popnavshift.sim.controllers.early_yield:EarlyYield",
     "robot_orca": "popnavshift.sim.controllers.robot_orca:RobotORCA",
 }
+#: a learned policy file (``popnavshift evaluate policy.onnx``), named by an id that holds its
+#: file and hash (:func:`popnavshift.controller_ids.policy_id`): not a built-in of
+#: ``BUILTINS``, which run with no parameters
+LEARNED: dict[str, str] = {POLICY: "popnavshift.learn.policy:PolicyController"}
 # what the package can build, not what the paper runs (popnavshift/paper.py)
 #: the navground types behind our own controllers (``NAVGROUND_NAME`` of reactive.py and
 #: early_yield.py, registered in navground when their module is first imported; a test
@@ -50,6 +55,6 @@ def register_navground_types() -> list[str]:
     return added
 
 
-for _name, _factory in BUILTINS.items():
+for _name, _factory in {**BUILTINS, **LEARNED}.items():
     CONTROLLERS.register(_name, _factory)  # re-registering the same factory is a no-op
 register_navground_types()
