@@ -313,3 +313,12 @@ def test_the_environment_adds_no_navground_behaviour_type():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_gymnasiums_own_checker_passes(study):
+    from gymnasium.utils.env_checker import check_env
+
+    path, folder = study
+    env = make_env(str(path), "mixed", folder=folder)
+    check_env(env, skip_render_check=True)  # spaces, reset(seed) determinism, step API
+    env.close()
