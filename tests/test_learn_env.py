@@ -300,3 +300,25 @@ def test_a_policy_in_the_environment_is_the_policy_as_a_studys_controller(study,
         outcomes.add(info["outcome"])
     env.close()
     assert outcomes  # both episodes ran to an outcome
+
+
+def test_the_environment_adds_no_navground_behaviour_type():
+    """The leaderboard lists navground's registered behaviours: the environment's robot
+    behaviour runs only inside the environment and must not be one of them."""
+    import subprocess
+    import sys
+
+    code = ("from navground import core; a = set(core.Behavior.types); "
+            "import popnavshift.learn.env; print(sorted(set(core.Behavior.types) - a))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_gymnasiums_own_checker_passes(study):
+    from gymnasium.utils.env_checker import check_env
+
+    path, folder = study
+    env = make_env(str(path), "mixed", folder=folder)
+    check_env(env, skip_render_check=True)  # spaces, reset(seed) determinism, step API
+    env.close()

@@ -128,12 +128,14 @@ class _Episode:
 _ABORT = object()
 
 
-class GymBehavior(core.Behavior, name="PopNavShiftGym"):
+class GymBehavior(core.Behavior):
     """The robot's behaviour in the environment: it wraps the expert controller's
     behaviour (``inner``, which shares its sensed state), and each step computes the
     expert's command, hands the observation to the environment and actuates its action
     (or the expert's command for ``None``). After the robot's run has ended (the stepping
-    loop set a Stop target: arrived or stopped by a collision) it no longer asks."""
+    loop set a Stop target: arrived or stopped by a collision) it no longer asks. Not
+    registered as a navground type (a listing of navground's behaviours, as the
+    leaderboard's, must not offer it: it runs only inside the environment)."""
 
     def __init__(self, kinematics: core.Kinematics | None = None, radius: float = 0.0) -> None:
         core.Behavior.__init__(self, kinematics, radius)
