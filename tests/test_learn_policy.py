@@ -152,6 +152,17 @@ def test_evaluate_policy_onnx_gives_its_card(policy, finished, tmp_path):
     again = cli("evaluate", str(policy), "--study", str(tmp_path / "tiny.yaml"), "-d",
                 str(folder), "--baselines", "robot_orca", "--n-boot", "20")
     assert again.returncode == 0 and "card is current, reused" in again.stderr
+    page = tmp_path / "side" / "compare.html"
+    side = cli("compare", str(policy), "--study", str(tmp_path / "tiny.yaml"),
+               "-d", str(folder), "--baselines", "robot_orca", "--n-boot", "20", "-o",
+               str(page))
+    assert side.returncode == 0, side.stderr
+    label = f"goal.onnx (sha256 {sha[:16]})"  # a page names the file, not this machine's path
+    for suffix in (".md", ".tex", ".html"):
+        text = page.with_suffix(suffix).read_text()
+        assert label.replace("_", "\\_") in text or label in text, suffix
+        assert str(policy.parent) not in text, suffix
+    assert str(policy) in page.with_suffix(".csv").read_text()  # the CSV keeps the id
 
 
 def _wrong_input(folder: Path) -> Path:

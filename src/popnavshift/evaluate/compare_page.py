@@ -24,6 +24,7 @@ import pandas as pd
 from jinja2 import Environment, select_autoescape
 from markupsafe import Markup, escape
 
+from ..controller_ids import policy_label
 from ..errors import ConfigError, InputError
 from ..io import read_json_object
 from ..outputs import FileSet, check_writable
@@ -160,6 +161,7 @@ def compare_figure(comparison: Comparison):
 def render_html(comparison: Comparison, png: bytes, page: Path) -> str:
     """The page: every value escaped; the figure embedded (no file beside it needed)."""
     env = Environment(autoescape=select_autoescape(default=True, default_for_string=True))
+    env.filters["label"] = lambda c: policy_label(c) or c  # a policy by file and hash
     shown = display_table(comparison.table)
     links = {c: os.path.relpath(p, Path(page).parent) for c, p in comparison.cards.items()}
     rows = [{k: _two_lines(v) if k not in ("controller", "robustness", "safety") else v
@@ -231,6 +233,12 @@ def check_page(page: Path, *, ours: bool = False) -> None:
     check_writable(page.parent, f"--out {page}")
 
 
+def _labelled(shown: pd.DataFrame) -> pd.DataFrame:
+    """``shown`` with a policy named by its file and hash, not its machine path (the CSV
+    and the page's links keep the id)."""
+    return shown.assign(controller=[policy_label(c) or c for c in shown["controller"]])
+
+
 def write_comparison(comparison: Comparison, page: Path) -> dict[str, Path]:
     """Write the page and its tables and figure as one set (module doc; the caller has
     checked ``page``: :func:`check_page`); format → path."""
@@ -239,9 +247,10 @@ def write_comparison(comparison: Comparison, page: Path) -> dict[str, Path]:
     with FileSet(page.parent, page.with_suffix(".json").name) as files:
         paths = {"csv": files.add_text(page.with_suffix(".csv").name,
                                        table_text(comparison.table, "csv")),
-                 "md": files.add_text(page.with_suffix(".md").name, table_text(shown, "md")),
+                 "md": files.add_text(page.with_suffix(".md").name,
+                                      table_text(_labelled(shown), "md")),
                  "tex": files.add_text(page.with_suffix(".tex").name, latex_table(
-                     display_table(comparison.table, short=True), caption(comparison),
+                     _labelled(display_table(comparison.table, short=True)), caption(comparison),
                      label=f"tab:{Path(page).stem}"))}
         png = png_bytes(compare_figure(comparison), dpi=100)
         paths["png"] = files.add(page.with_suffix(".png").name, lambda tmp: tmp.write_bytes(png))
@@ -257,7 +266,7 @@ def write_comparison(comparison: Comparison, page: Path) -> dict[str, Path]:
 
 _PAGE = """<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>{{ heading }}:
-{{ c.controllers | join(", ") }}</title>
+{{ c.controllers | map("label") | join(", ") }}</title>
 <style>body{font-family:sans-serif;margin:1em auto;max-width:1264px;padding:0 .5em;
 font-size:14px}table{border-collapse:collapse;margin:.4em 0;font-size:11px}
 td,th{border:1px solid #ccc;padding:2px 3px}td{text-align:right;white-space:nowrap}
@@ -269,7 +278,7 @@ td.l,th{text-align:left}.small{color:#555;font-size:12px}.wrap{overflow-x:auto;m
 <p>Study <b>{{ c.study.name }}</b> (configuration {{ c.study.config_hash() }}, folder
 {{ folder }}): {{ c.controllers | length }} controllers on the same episodes and
 populations. PopNavShift {{ version }}, made {{ c.made }}. Every card was made under the
-same rules: against {{ c.settings.get("baselines", []) | join(", ") }},
+same rules: against {{ c.settings.get("baselines", []) | map("label") | join(", ") }},
 {{ c.settings.get("n_boot", "–") }} bootstrap resamples, seed {{ c.settings.get("seed", "–") }},
 safety threshold {{ c.settings.get("safety_threshold", "–") }} of the runs. The
 <b>robustness</b> verdict of each row is decided against that controller's own null runs
@@ -279,7 +288,7 @@ columns can be ranked.</p>
 <div class="wrap"><table><tr>{% for col in columns %}<th>{{ col }}</th>{% endfor %}</tr>
 {% for r in rows %}<tr>{% for col in columns %}{% if col == 'controller' %}<td class="l">
 <span class="mark" style="color:{{ looks[r[col]].colour }}">{{ looks[r[col]].symbol }}</span>
-<a href="{{ links[r[col]] }}">{{ r[col] }}</a></td>{% elif col in ('robustness', 'safety')
+<a href="{{ links[r[col]] }}">{{ r[col] | label }}</a></td>{% elif col in ('robustness', 'safety')
 %}<td class="l {{ r[col] | replace(' ', '-') }}">{{ r[col] }}</td>{% else %}<td>{{ r[col] }}</td>
 {% endif %}{% endfor %}</tr>{% endfor %}</table></div>
 <p class="small">Shares in % of each controller's runs with exact 95% intervals
@@ -291,7 +300,7 @@ column), {{ stem }}.md, {{ stem }}.tex (a LaTeX table with caption and label) be
 page.</p>
 <img src="data:image/png;base64,{{ png }}" alt="compared metrics per population">
 <h2>Verdicts in words</h2>
-<ul>{% for ctrl, v in verdicts.items() %}<li><b>{{ ctrl }}</b> — robustness
+<ul>{% for ctrl, v in verdicts.items() %}<li><b>{{ ctrl | label }}</b> — robustness
 <span class="{{ v.robustness.label | replace(' ', '-') }}">{{ v.robustness.label }}</span>:
 {{ v.robustness.text }}{% if v.robustness.decide %} {{ v.robustness.decide }}{% endif %}
 Safety <span class="{{ v.safety.label }}">{{ v.safety.label }}</span>: {{ v.safety.text }}
