@@ -21,8 +21,10 @@ For each training population (default ``homogeneous`` and ``mixed``) this
    environment (the ONNX file run by ONNX Runtime), and prints one table: success,
    pedestrian- and world-collision, timeout rates and the mean time of the successes.
 
-Then, if ``popnavshift evaluate`` takes a policy file (``--evaluate``), it runs
-``popnavshift evaluate policy_<population>.onnx --study <evaluate-study>`` for the card.
+Then, with ``--evaluate``, it runs ``popnavshift evaluate policy_<population>.onnx --study
+<evaluate-study>`` for each card, timed; ``--evaluate-only`` does only that, on the
+policies already in ``--out`` (the cards on the paper study: ``--evaluate-only
+--evaluate-study paper --evaluate-dir study --workers 2`` after ``make run``).
 
 Needs ``pip install -e '.[learn]'`` (torch, Stable-Baselines3). Single-threaded torch;
 ``nice -n 10`` it on a shared machine:
@@ -217,13 +219,17 @@ def _table(rows: list[dict]) -> str:
 
 
 def _evaluate(onnx: str, args: argparse.Namespace, out: Path) -> None:
-    """``popnavshift evaluate <onnx>`` (part of issue #36's controllers; skipped with the
-    reason when this installation's evaluate does not take a policy file)."""
+    """``popnavshift evaluate <onnx>`` on ``--evaluate-study`` in ``--evaluate-dir`` (default
+    a folder beside the policies), timed, with the machine's load before and after."""
+    folder = args.evaluate_dir or out / f"study-{Path(args.evaluate_study).stem}"
     cmd = [sys.executable, "-m", "popnavshift", "evaluate", onnx, "--study",
-           args.evaluate_study, "-w", "1", "-d", str(out / f"study-{args.evaluate_study}")]
-    print("$", " ".join(cmd), flush=True)
+           args.evaluate_study, "-w", str(args.workers), "-d", str(folder)]
+    print("$", " ".join(cmd), f"(load {os.getloadavg()})", flush=True)
+    start = time.perf_counter()
     proc = subprocess.run(cmd, capture_output=True, text=True)
     print(proc.stdout[-3000:], proc.stderr[-2000:], sep="\n", flush=True)
+    print(f"evaluate [{Path(onnx).name}]: {time.perf_counter() - start:.0f} s, exit "
+          f"{proc.returncode}; load {os.getloadavg()}", flush=True)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -243,7 +249,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--evaluate", action="store_true",
                     help="then run `popnavshift evaluate` on each ONNX file")
     ap.add_argument("--evaluate-study", default="quick")
+    ap.add_argument("--evaluate-dir", type=Path, default=None,
+                    help="the study folder to evaluate in (e.g. `make run`'s ./study with "
+                         "--evaluate-study paper: its runs are reused)")
+    ap.add_argument("--evaluate-only", action="store_true",
+                    help="no training: evaluate the policy_<population>.onnx files in --out")
+    ap.add_argument("--workers", type=int, default=1, help="evaluate's worker processes")
     args = ap.parse_args(argv)
+    if args.evaluate_only:
+        for population in args.populations:
+            _evaluate(str((args.out / f"policy_{population}.onnx").resolve()), args, args.out)
+        return 0
 
     import torch as th
 
