@@ -42,7 +42,9 @@ def card_figure(card: Card):
     ctrls = (*card.baselines, card.controller)
     for ax, metric in zip(axes.flat[:3], METRICS, strict=True):
         population_panel(ax, card.per_population, metric, ctrls, card.controller)
-    axes.flat[0].legend(fontsize=8)
+    # the controllers' legend below the panels: inside one it can hide a point
+    handles, labels = axes.flat[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=len(labels), fontsize=9)
     _null_panel(axes.flat[3], card)
     fig.suptitle(f"Population robustness of {policy_label(card.controller) or card.controller}",
                  fontsize=13)
