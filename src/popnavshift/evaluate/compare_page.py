@@ -152,8 +152,12 @@ def compare_figure(comparison: Comparison):
     for ax in axes.flat[len(COMPARE_METRICS):]:
         ax.set_axis_off()
     handles, labels = axes.flat[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncol=min(6, len(labels)),
-               fontsize=9)  # outside the panels: it never hides a point
+    if len(axes.flat) > len(COMPARE_METRICS):  # in the empty panel: it never hides a point
+        axes.flat[-1].legend(handles, labels, loc="center", fontsize=9, frameon=False)
+    else:  # below the panels, in as many columns as long names leave room for
+        wide = max((len(x) for x in labels), default=0) > 24
+        fig.legend(handles, labels, loc="outside lower center",
+                   ncol=min(3 if wide else 6, len(labels)), fontsize=9)
     fig.suptitle("Controllers compared, per population", fontsize=13)
     return fig
 
