@@ -120,3 +120,9 @@ def policy_label(identity: str) -> str | None:
     when ``identity`` is not a policy's."""
     found = policy_file(identity)
     return None if found is None else f"{Path(found[0]).name} (sha256 {found[1]})"
+
+
+def display_name(identity: str) -> str:
+    """How a page, table or figure names a controller: a policy by its file and hash
+    (:func:`policy_label`), never its machine path; any other id as it is."""
+    return policy_label(identity) or identity

@@ -110,7 +110,7 @@ def calibrate(
 def _card_calibrations(study_dir: Path) -> None:
     """Each card's verdict as a whole (its table of rates decided together, the raw rule)
     on that controller's placebos: one row per card and claim; a damaged card is named."""
-    from ..controller_ids import policy_label
+    from ..controller_ids import display_name
     from ..io import read_csv
     from ..read.access import EVALUATE_DIR, card_intact
 
@@ -123,8 +123,7 @@ def _card_calibrations(study_dir: Path) -> None:
             continue
         path = card / "robustness_calibration.csv"
         cal = read_csv(path) if path.is_file() else None
-        name = str(doc.get("controller", card.name))
-        name = policy_label(name) or name  # a policy by its file and hash, not its path
+        name = display_name(str(doc.get("controller", card.name)))
         rows = [] if cal is None or cal.empty else list(cal[
             (cal["comparison"] == "table") & (cal["kind"] == "false positive")].itertuples())
         if not rows:

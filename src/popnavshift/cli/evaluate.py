@@ -107,8 +107,7 @@ def evaluate(
     controller id holds the file's absolute path and sha256, so a changed file is
     another controller with runs of its own.
     """
-    given = None if baselines is None else tuple(named(
-        *(b.strip() for b in baselines.split(",") if b.strip())))
+    given = None if baselines is None else _baselines(baselines, ())
     controller = named(controller)[0]
     check_controllers(controller, *(given or ()))  # a misspelt name fails at once
     check_policies(controller, *(given or ()))

@@ -18,7 +18,7 @@ from jinja2 import Environment, select_autoescape
 from markupsafe import Markup
 
 from ..analysis import METRICS, TOLERANCES
-from ..controller_ids import policy_label
+from ..controller_ids import display_name
 from ..outputs import FileSet
 from ..populations.build import population_order
 from ..viz.style import controller_styles
@@ -46,7 +46,7 @@ def card_figure(card: Card):
     handles, labels = axes.flat[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside lower center", ncol=len(labels), fontsize=9)
     _null_panel(axes.flat[3], card)
-    fig.suptitle(f"Population robustness of {policy_label(card.controller) or card.controller}",
+    fig.suptitle(f"Population robustness of {display_name(card.controller)}",
                  fontsize=13)
     return fig
 
@@ -78,7 +78,7 @@ def population_panel(ax, per_population: pd.DataFrame, metric: str, controllers:
         look, mine = styles[ctrl], ctrl == highlight
         ax.scatter(x + (i - (len(controllers) - 1) / 2) * step,
                    s[metric].reindex(pops).to_numpy(float), marker=look.marker,
-                   s=60 if mine else 28, color=look.colour, label=policy_label(ctrl) or ctrl,
+                   s=60 if mine else 28, color=look.colour, label=display_name(ctrl),
                    zorder=3 if mine else 2,
                    edgecolors="black" if mine else "none", linewidths=1.2)
     ax.set_title(METRIC_LABELS[metric])

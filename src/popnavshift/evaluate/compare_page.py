@@ -24,7 +24,7 @@ import pandas as pd
 from jinja2 import Environment, select_autoescape
 from markupsafe import Markup, escape
 
-from ..controller_ids import policy_label
+from ..controller_ids import display_name
 from ..errors import ConfigError, InputError
 from ..io import read_json_object
 from ..outputs import FileSet, check_writable
@@ -165,7 +165,7 @@ def compare_figure(comparison: Comparison):
 def render_html(comparison: Comparison, png: bytes, page: Path) -> str:
     """The page: every value escaped; the figure embedded (no file beside it needed)."""
     env = Environment(autoescape=select_autoescape(default=True, default_for_string=True))
-    env.filters["label"] = lambda c: policy_label(c) or c  # a policy by file and hash
+    env.filters["label"] = display_name
     shown = display_table(comparison.table)
     links = {c: os.path.relpath(p, Path(page).parent) for c, p in comparison.cards.items()}
     rows = [{k: _two_lines(v) if k not in ("controller", "robustness", "safety") else v
@@ -240,7 +240,7 @@ def check_page(page: Path, *, ours: bool = False) -> None:
 def _labelled(shown: pd.DataFrame) -> pd.DataFrame:
     """``shown`` with a policy named by its file and hash, not its machine path (the CSV
     and the page's links keep the id)."""
-    return shown.assign(controller=[policy_label(c) or c for c in shown["controller"]])
+    return shown.assign(controller=[display_name(c) for c in shown["controller"]])
 
 
 def write_comparison(comparison: Comparison, page: Path) -> dict[str, Path]:

@@ -51,7 +51,7 @@ from ..analysis.ranked import RANKED_METRICS
 from ..analysis.replicates import seed_sets
 from ..analysis.reversals import COMPARISONS
 from ..analysis.verdicts import ABOVE, ALPHA, BELOW, MIN_EFFECT, SMALL
-from ..controller_ids import policy_label
+from ..controller_ids import display_name
 from ..populations.identity import PopulationSpec, spec_of
 from ..tables import NO_ROBOT
 
@@ -147,7 +147,7 @@ def robustness_tables(runs: pd.DataFrame, peds: pd.DataFrame, controller: str,
         cat["null"], family=family,
         interaction=None if inter.empty else interaction_placebos(cat["inter_null"],
                                                                  int(inter["family"].max())))
-    named = policy_label(controller) or controller  # a policy by its file, not its path
+    named = display_name(controller)
     label, text = robustness_label(head, by_baseline, named)
     columns = [c for c in COLUMNS if c in head]
     return Robustness(head[columns], cat["null"], by_baseline[columns], calibration, label,

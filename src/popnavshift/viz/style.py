@@ -16,7 +16,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import NamedTuple
 
-from ..controller_ids import policy_label
+from ..controller_ids import display_name
 from ..hashing import digest
 from ..paper import CONTROLLERS
 from ..tables import NO_ROBOT, NO_ROBOT_LABEL
@@ -59,7 +59,7 @@ def controller_label(name: str) -> str:
     (:data:`popnavshift.paper.CONTROLLERS`), ``no robot`` for the baselines, a policy file's
     name and hash for a learned policy (:func:`popnavshift.controller_ids.policy_label`),
     else its id."""
-    return LABELS.get(name) or policy_label(name) or name
+    return LABELS.get(name) or display_name(name)
 
 
 def _hash(name: str) -> int:
