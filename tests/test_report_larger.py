@@ -5,12 +5,19 @@ from __future__ import annotations
 import pandas as pd
 
 from popnavshift.design.study import builtin_studies, load_study
-from popnavshift.report.larger import QUESTIONS, larger_clause, larger_study, split_undecided
+from popnavshift.report.larger import (
+    QUESTIONS,
+    larger_clause,
+    larger_studies,
+    larger_study,
+    split_undecided,
+    unresolved,
+)
 
 
-def test_the_recorded_larger_study_is_built_in_and_its_runs_are_what_plan_counts():
-    larger = larger_study("paper")
-    assert larger is not None and larger.name in builtin_studies()
+def test_the_recorded_larger_studies_are_built_in_and_their_runs_are_what_plan_counts():
+    studies = larger_studies("paper")
+    assert studies and larger_study("paper") == studies[0]
     from popnavshift.design.plan import plan_study
     from popnavshift.episodes.specs import all_episodes
 
@@ -18,8 +25,22 @@ def test_the_recorded_larger_study_is_built_in_and_its_runs_are_what_plan_counts
         study = load_study(name)
         return len(plan_study(study, all_episodes(seed=study.seed)))
 
-    assert distinct(larger.name) == larger.runs
-    assert set(larger.decided) == set(QUESTIONS)
+    for larger in studies:
+        assert larger.name in builtin_studies()
+        assert distinct(larger.name) == larger.runs
+        assert set(larger.decided) == set(QUESTIONS)
+
+
+def test_a_row_recorded_as_unresolved_is_decided_by_no_recorded_larger_study():
+    measured = unresolved("paper")
+    assert measured and all(u.question in QUESTIONS and u.rows and u.why for u in measured)
+    for u in measured:
+        for larger in larger_studies("paper"):
+            assert not u.rows & larger.decided[u.question], (u, larger.name)
+    assert unresolved("quick") == [] and larger_studies("quick") == []
+    # the larger studies run the same grid: the same rows stay unresolved in their reports
+    for larger in larger_studies("paper"):
+        assert unresolved(larger.name) == measured
 
 
 def test_undecided_rows_split_into_those_the_larger_study_decided_and_the_rest():

@@ -235,6 +235,10 @@ def test_the_paper_study_names_paper_large_for_the_rows_it_decided_and_no_study_
     nobody = [s for s in said if s.startswith("No built-in study")]
     assert any("blocked" in s.lower() for s in nobody) and not any(
         "worst-decile" in s for s in nobody), said
+    # a row measured undecidable says what was measured, not only "no built-in study"
+    blocked = next(s for s in nobody if "blocked" in s.lower())
+    assert blocked.startswith("No built-in study decides the reversal verdict") and (
+        "measured" in blocked and "would decide it" in blocked), blocked
     other, _ = answer_sentences(tables, ("paper", 3))  # another seed: said so
     assert "not this study's" in " ".join(a["text"] for a in other)
     none, _ = answer_sentences(tables, ("quick", 0))  # no larger study recorded

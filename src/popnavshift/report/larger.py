@@ -1,10 +1,12 @@
 """Where a larger built-in study decided what this one leaves undecided (issue #32, item 3).
 
 A study that cannot decide a headline row within the default's budget says so, and names
-the larger built-in study that did decide it, with its runs and time. What each larger
-study decided is a measurement (docs/method.md, "The default design and the larger
+the smallest larger built-in study that did decide it, with its runs and time. What each
+larger study decided is a measurement (docs/method.md, "The default design and the larger
 study"), recorded in ``data/larger_studies.json`` by the study it enlarges; it holds only
-for that study's seed, and the sentence says so.
+for that study's seed, and the sentence says so. Rows that no measured design decided are
+recorded too, each with what was measured and what would decide it, so the report says
+that instead of only "no built-in study".
 """
 
 from __future__ import annotations
@@ -33,14 +35,49 @@ class Larger:
     decided: dict[str, frozenset[str]]
 
 
-def larger_study(study: str) -> Larger | None:
-    """The larger built-in study recorded for ``study`` (None if there is none)."""
+@dataclass(frozen=True)
+class Unresolved:
+    """Rows (``comparison/metric``) of one question that no measured design decided, and
+    the measurement that says so, as a clause (what was run, what it gave, what would
+    decide them)."""
+
+    question: str
+    rows: frozenset[str]
+    why: str
+
+
+def _record(study: str) -> dict:
     text = resources.files("popnavshift").joinpath("data/larger_studies.json").read_text("utf-8")
     rec = json.loads(text).get(study)
-    if not isinstance(rec, dict):
-        return None
-    return Larger(rec["larger"], int(rec["seed"]), int(rec["runs"]), rec.get("minutes"),
-                  {q: frozenset(rec["decided"].get(q, ())) for q in QUESTIONS})
+    return rec if isinstance(rec, dict) else {}
+
+
+def larger_studies(study: str) -> list[Larger]:
+    """The larger built-in studies recorded for ``study``, smallest first (empty if none)."""
+    found = [Larger(r["name"], int(r["seed"]), int(r["runs"]), r.get("minutes"),
+                    {q: frozenset(r["decided"].get(q, ())) for q in QUESTIONS})
+             for r in _record(study).get("larger", [])]
+    return sorted(found, key=lambda s: s.runs)
+
+
+def larger_study(study: str) -> Larger | None:
+    """The smallest larger built-in study recorded for ``study`` (None if there is none)."""
+    found = larger_studies(study)
+    return found[0] if found else None
+
+
+def unresolved(study: str) -> list[Unresolved]:
+    """The rows of ``study`` that no measured design decided, with why."""
+    rec = _record(study)
+    if "unresolved_as" in rec:  # the same grid: the same measurement
+        rec = _record(rec["unresolved_as"])
+    return [Unresolved(u["question"], frozenset(u["rows"]), u["why"])
+            for u in rec.get("unresolved", [])]
+
+
+def row_keys(rows: pd.DataFrame) -> pd.Series:
+    """``comparison/metric`` of each row, the record's key."""
+    return rows["comparison"].astype(str) + "/" + rows["metric"].astype(str)
 
 
 def split_undecided(rows: pd.DataFrame, question: str, larger: Larger | None
@@ -49,8 +86,7 @@ def split_undecided(rows: pd.DataFrame, question: str, larger: Larger | None
     study decided on its seed for ``question`` and the rest."""
     if larger is None or rows.empty:
         return rows.iloc[:0], rows
-    key = rows["comparison"].astype(str) + "/" + rows["metric"].astype(str)
-    hit = key.isin(larger.decided.get(question, frozenset())).to_numpy()
+    hit = row_keys(rows).isin(larger.decided.get(question, frozenset())).to_numpy()
     return rows[hit], rows[~hit]
 
 

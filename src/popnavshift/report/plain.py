@@ -31,7 +31,7 @@ from ..analysis.interaction import NOT_SHOWN as NOT_CHANGED
 from ..analysis.power import POWER
 from ..analysis.reversals import COMPARISONS
 from ..analysis.verdicts import ABOVE, BELOW, MIN_NULLS_T, SMALL, UNDECIDED
-from .larger import larger_clause, larger_study, split_undecided
+from .larger import larger_clause, larger_studies, row_keys, split_undecided, unresolved
 from .plain_order import order_sentence
 from .plain_support import calibration_sentence, crossover_sentence, decided_sentence
 from .plain_words import (
@@ -237,22 +237,32 @@ def _advice(r: Any) -> str:
 
 def larger_study_sentence(undecided: pd.DataFrame,
                           study: tuple[str, int | None] | None = None) -> str | None:
-    """The larger built-in study that decided some of the ``undecided`` rows
+    """The larger built-in studies that decided some of the ``undecided`` rows
     (``comparison``, ``metric``, ``question``: "reversals" or "interaction") of ``study``
-    (its name and seed), with its runs and time, measured on its own seed
-    (:mod:`.larger`); the rows it did not decide are said to be decided by no built-in
-    study. None when no larger study is recorded for this one."""
-    larger = larger_study(study[0]) if study is not None else None
-    if larger is None or undecided.empty:
+    (its name and seed), each row named with the smallest that did, with its runs and time,
+    measured on its own seed (:mod:`.larger`); rows no measured design decided are said so
+    with what was measured, and any other row is said to be decided by no built-in study.
+    None when nothing is recorded for this study."""
+    name, seed = study if study is not None else (None, None)
+    studies = larger_studies(name) if name else []
+    measured = unresolved(name) if name else []
+    if not (studies or measured) or undecided.empty:
         return None
     said = []
     for question, words in (("reversals", "the reversal verdict"),
                             ("interaction", "the interaction test")):
-        hit, rest = split_undecided(undecided[undecided["question"] == question], question,
-                                    larger)
-        if len(hit):
-            said.append(f"For {words} of {_where(hit)}, "
-                        f"{larger_clause(larger, study[1] if study else None, len(hit))}.")
+        rest = undecided[undecided["question"] == question]
+        for larger in studies:
+            hit, rest = split_undecided(rest, question, larger)
+            if len(hit):
+                said.append(f"For {words} of {_where(hit)}, "
+                            f"{larger_clause(larger, seed, len(hit))}.")
+        for u in (u for u in measured if u.question == question):
+            known = row_keys(rest).isin(u.rows).to_numpy()
+            if known.any():
+                said.append(f"No built-in study decides {words} of {_where(rest[known])}: "
+                            f"{u.why}.")
+            rest = rest[~known]
         if len(rest):
             said.append(f"No built-in study decided {words} of {_where(rest)}.")
     return " ".join(said) or None
