@@ -245,6 +245,36 @@ def test_the_paper_study_names_paper_large_for_the_rows_it_decided_and_no_study_
     assert "paper-large" not in " ".join(a["text"] for a in none)
 
 
+def test_a_row_a_measurement_on_this_seed_settles_gets_the_measurement_not_the_model():
+    # matched cvar90 was decided by a larger built-in study on seed 0 (the pairs' mean delay
+    # by none): on seed 0 the report says so and drops the model's prediction for it; on
+    # another seed it says both
+    truth = {("matched", "cvar90"): (UNDECIDED, CHANGES),
+             ("all_pairs", "mean_delay"): (UNDECIDED, CHANGES)}
+    head = headline(truth)
+    power = head.assign(seed_sets_needed=[18.0, np.nan, 9.0, np.nan],
+                        nulls_needed=[13.0, np.nan, 12.0, np.nan],
+                        runs_needed=[529152.0, np.nan, 400000.0, np.nan],
+                        minutes_needed=[75.0, np.nan, 40.0, np.nan],
+                        limit=["seed sets and null replicates", "x",
+                               "seed sets and null replicates", "y"])
+    tables = {"evidence_headline": head, "evidence_interaction": interaction(truth),
+              "evidence_power": power}
+
+    def said(seed: int) -> list[str]:
+        answer, _ = answer_sentences(tables, ("paper", seed))
+        return sentences(next(a for a in answer if a["lead"].startswith("Undecided"))["text"])
+
+    here = said(0)
+    model = [s for s in here if "by the model" in s]
+    assert len(model) == 1 and "across the population pairs" in model[0], here
+    assert any("the matched shift" in s and "decided" in s and "paper-" in s for s in here)
+    assert not any(s.startswith(" ") or "  " in s for s in here)
+    elsewhere = said(3)
+    assert len([s for s in elsewhere if "by the model" in s]) == 2, elsewhere
+    assert any("not this study's" in s for s in elsewhere)
+
+
 SPAN = {"a": (1, 1, 1), "b": (2, 2, 3), "c": (3, 2, 3)}
 
 

@@ -37,11 +37,12 @@ class Larger:
 
 @dataclass(frozen=True)
 class Unresolved:
-    """Rows (``comparison/metric``) of one question that no measured design decided, and
-    the measurement that says so, as a clause (what was run, what it gave, what would
-    decide them)."""
+    """Rows (``comparison/metric``) of one question that no measured design decided on study
+    seed ``seed``, and the measurement that says so, as a clause (what was run, what it
+    gave, what would decide them)."""
 
     question: str
+    seed: int
     rows: frozenset[str]
     why: str
 
@@ -71,8 +72,23 @@ def unresolved(study: str) -> list[Unresolved]:
     rec = _record(study)
     if "unresolved_as" in rec:  # the same grid: the same measurement
         rec = _record(rec["unresolved_as"])
-    return [Unresolved(u["question"], frozenset(u["rows"]), u["why"])
+    return [Unresolved(u["question"], int(u["seed"]), frozenset(u["rows"]), u["why"])
             for u in rec.get("unresolved", [])]
+
+
+def measured_here(study: str, seed: int | None) -> dict[str, frozenset[str]]:
+    """Per question, the rows of ``study`` whose fate a measurement on this very seed
+    settles: decided by a larger built-in study, or decided by no design of the grid. The
+    report says the measurement for them, not a model's prediction."""
+    rows: dict[str, set[str]] = {q: set() for q in QUESTIONS}
+    for larger in larger_studies(study):
+        if larger.seed == seed:
+            for q in QUESTIONS:
+                rows[q] |= larger.decided[q]
+    for u in unresolved(study):
+        if u.seed == seed:
+            rows[u.question] |= u.rows
+    return {q: frozenset(r) for q, r in rows.items()}
 
 
 def row_keys(rows: pd.DataFrame) -> pd.Series:

@@ -31,7 +31,14 @@ from ..analysis.interaction import NOT_SHOWN as NOT_CHANGED
 from ..analysis.power import POWER
 from ..analysis.reversals import COMPARISONS
 from ..analysis.verdicts import ABOVE, BELOW, MIN_NULLS_T, SMALL, UNDECIDED
-from .larger import larger_clause, larger_studies, row_keys, split_undecided, unresolved
+from .larger import (
+    larger_clause,
+    larger_studies,
+    measured_here,
+    row_keys,
+    split_undecided,
+    unresolved,
+)
 from .plain_order import order_sentence
 from .plain_support import calibration_sentence, crossover_sentence, decided_sentence
 from .plain_words import (
@@ -275,14 +282,19 @@ def _where(rows: pd.DataFrame) -> str:
 
 def undecided_sentence(rows: pd.DataFrame, power: pd.DataFrame | None,
                        study: tuple[str, int | None] | None = None) -> dict[str, str] | None:
-    """The undecided rows and what would decide each (the power advice, else `plan`)."""
+    """The undecided rows and what would decide each: a measurement on this study's seed
+    where one is recorded (:func:`larger_study_sentence`), else the power advice, else
+    `plan`."""
     rev = rows[rows["rev"] == UNDECIDED]
     untested = rows[rows["inter"] == UNTESTED]
     if rev.empty and untested.empty:
         return None
     advice: dict[str, dict[str, list[str]]] = {}
-    for comp in [c for c in COMPARISONS if c in set(rev["comparison"])]:
-        for _, r in by_metric(rev[rev["comparison"] == comp]).iterrows():
+    # a row a measurement on this seed settles gets the measurement, not the model's guess
+    settled = measured_here(*study)["reversals"] if study is not None else frozenset()
+    modelled = rev[~row_keys(rev).isin(settled).to_numpy()]
+    for comp in [c for c in COMPARISONS if c in set(modelled["comparison"])]:
+        for _, r in by_metric(modelled[modelled["comparison"] == comp]).iterrows():
             p = (power[(power["comparison"] == comp) & (power["metric"] == r["metric"])
                        & (power["rule"] == "raw")] if power is not None else pd.DataFrame())
             said = (_advice(p.iloc[0]) if not p.empty else "") or (
@@ -305,7 +317,7 @@ def undecided_sentence(rows: pd.DataFrame, power: pd.DataFrame | None,
         ["comparison", "metric", "question"]]
     extra = larger_study_sentence(frame, study)
     return {"lead": "Undecided rows and what would decide them.",
-            "text": " ".join(parts) + (f" {extra}" if extra else "")}
+            "text": " ".join(parts + ([extra] if extra else []))}
 
 
 def _populations(ranks: pd.DataFrame | None) -> list[str]:
