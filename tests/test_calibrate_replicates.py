@@ -191,3 +191,30 @@ def test_the_placebos_are_read_under_both_locks(side_study, monkeypatch):
     monkeypatch.setattr(study_evidence, "evidence_tables", spy)
     assert _side_calibration(side_study, 5, 1) is None
     assert held == [{side_study.name, "calibration"}]
+
+
+def test_a_rule_above_nominal_in_one_comparison_is_said_though_within_pooled():
+    """The 75-replicate calibration of the default study: the interaction test at 5 % was
+    within pooled (39/750) and above nominal across the population pairs (28/375); the
+    summary under the tables must not hide the second behind the first."""
+    import pandas as pd
+    from scipy import stats
+
+    from popnavshift.cli.calibrate import summary_lines
+
+    def row(comparison: str, claims: int, placebos: int, status: str) -> dict:
+        lo, hi = (stats.beta.ppf(0.025, claims, placebos - claims + 1),
+                  stats.beta.ppf(0.975, claims + 1, placebos - claims))
+        return {"comparison": comparison, "kind": "false positive", "test": "interaction",
+                "claim": "changes more than under the null, at 0.05", "rule": "—",
+                "claims": claims, "placebos": placebos, "rate": claims / placebos,
+                "cp_low": lo, "cp_high": hi, "nominal": 0.05, "status": status}
+
+    cal = pd.DataFrame([row("all", 39, 750, "within"), row("matched", 11, 375, "within"),
+                        row("all_pairs", 28, 375, "above nominal")])
+    lines = summary_lines(cal)
+    assert lines[0].startswith("[red]above its nominal level[/]") and (
+        "all_pairs: 28/375, 7.5% [5.0, 10.6]" in lines[0]), lines
+    fine = summary_lines(cal.assign(status="within"))
+    assert fine[0].startswith("[green]no verdict rule claims more") and (
+        "pooled or in any one comparison" in fine[0])

@@ -57,7 +57,6 @@ def calibrate(
 
     Examples: `popnavshift calibrate study`; `popnavshift calibrate study --replicates 39`.
     """
-    from ..analysis.calibrate import TESTS
     from ..read.checks import check_study_folder
 
     check_study_folder(study_dir)
@@ -82,29 +81,52 @@ def calibrate(
             t.add_row(f"{say(r.test)} ({say(r.rule)})", say(r.claim), f"{r.claims}/{r.placebos}",
                       _rate(r), _status(r))
         stdout.print(t)
-    fp = cal[cal["comparison"].isin(["all", "table"]) & (cal["kind"] == "false positive")]
-    bad = fp[fp["status"] == "above nominal"]
+    for line in summary_lines(cal):
+        stdout.print(line, highlight=False)
+    _card_calibrations(study_dir)
+
+
+def summary_lines(cal) -> list[str]:
+    """The verdict under the tables: rules above nominal — pooled, over the headline table
+    or in any one comparison (a rule can be within pooled and above in one comparison) —
+    else that none is; rules with too few placebos to rule out twice nominal; tests no
+    placebo could reach."""
+    from ..analysis.calibrate import TESTS
+
+    false_pos = cal[cal["kind"] == "false positive"]
+    fp = false_pos[false_pos["comparison"].isin(["all", "table"])]
+    bad = false_pos[false_pos["status"] == "above nominal"]
     checked = fp[fp["placebos"] > 0]
     unsure = checked[checked["status"] == "too few placebos to tell"]
+    lines = []
     if bad.empty:
-        stdout.print(f"[green]no verdict rule claims more than its nominal level[/] on this "
-                     f"study's placebos ({len(checked)} rules checked; every Clopper–Pearson "
-                     "interval reaches down to its nominal level).", highlight=False)
+        lines.append(f"[green]no verdict rule claims more than its nominal level[/] on this "
+                     f"study's placebos, pooled or in any one comparison ({len(checked)} rules "
+                     "checked; every Clopper–Pearson interval reaches down to its nominal "
+                     "level).")
     else:
-        stdout.print("[red]above its nominal level[/]: "
-                     + "; ".join(f"{say(r.test)}: {say(r.claim)}" for r in bad.itertuples()),
-                     highlight=False)
+        lines.append("[red]above its nominal level[/]: "
+                     + "; ".join(f"{say(r.test)}: {say(r.claim)} ({_scope(r.comparison)}: "
+                                 f"{r.claims}/{r.placebos}, {_rate(r)})"
+                                 for r in bad.itertuples())
+                     + " (placebos share null replicates and metrics, so the interval is "
+                     "narrower than independent draws would give).")
     if not unsure.empty:
-        stdout.print("too few placebos to rule out twice the nominal rate for: "
+        lines.append("too few placebos to rule out twice the nominal rate for: "
                      + "; ".join(f"{say(r.test)}: {say(r.claim)}" for r in unsure.itertuples())
                      + " (more null replicates would tell; the test suite checks the rules on "
-                     "thousands of synthetic designs).", highlight=False)
+                     "thousands of synthetic designs).")
     unchecked = sorted(set(TESTS) - set(checked["test"]))
     if unchecked:
-        stdout.print("no placebo could make a claim for: "
+        lines.append("no placebo could make a claim for: "
                      + "; ".join(f"{n} (it needs {TESTS[n].min_nulls + 1} null replicates)"
-                                 for n in unchecked) + ".", highlight=False)
-    _card_calibrations(study_dir)
+                                 for n in unchecked) + ".")
+    return lines
+
+
+def _scope(comparison: str) -> str:
+    """``pooled``, ``the headline table`` or the comparison's own name."""
+    return {"all": "pooled", "table": "the headline table"}.get(comparison, comparison)
 
 
 def _card_calibrations(study_dir: Path) -> None:
