@@ -64,3 +64,18 @@ def test_the_clause_names_the_study_its_cost_and_whose_seed_it_was_measured_on()
     assert "this study's seed" in same
     other = larger_clause(larger, larger.seed + 1, 2)
     assert "decided them" in other and "not this study's" in other
+
+
+def test_a_recorded_calibration_is_a_count_with_its_clopper_pearson_interval():
+    from scipy import stats
+
+    from popnavshift.report.larger import measured_calibration
+
+    measured = measured_calibration("paper")
+    assert measured
+    for m in measured:
+        for at in (m.at_05, m.at_level):
+            k, n = at["claims"], at["placebos"]
+            assert n == m.replicates * 5 and abs(at["rate"] - k / n) < 5e-4
+            assert abs(at["cp_low"] - stats.beta.ppf(0.025, k, n - k + 1)) < 5e-4
+            assert abs(at["cp_high"] - stats.beta.ppf(0.975, k + 1, n - k)) < 5e-4

@@ -275,6 +275,31 @@ def test_a_row_a_measurement_on_this_seed_settles_gets_the_measurement_not_the_m
     assert any("not this study's" in s for s in elsewhere)
 
 
+def test_a_test_measured_above_nominal_at_this_design_qualifies_its_claims_here():
+    # the paper study's record: across the pairs at 3 variants per cell the interaction
+    # test claimed on 7.5 % of 375 placebos at 5 %
+    truth = {("matched", "robot_time"): (SMALL, CHANGES),
+             ("all_pairs", "robot_time"): (SMALL, CHANGES),
+             ("all_pairs", "mean_delay"): (ABOVE, NOT_CHANGED)}
+    inter = interaction(truth).assign(variants_per_cell=[12, 3, 3])
+
+    def said(study, inter=inter) -> str:
+        answer, _ = answer_sentences({"evidence_headline": headline(truth),
+                                      "evidence_interaction": inter}, study)
+        return " ".join(a["lead"] + " " + a["text"] for a in answer
+                        if a["lead"].startswith("One test claims"))
+
+    text = said(("paper", 0))
+    assert "across the population pairs claimed a change on 28 of 375 placebos (7.5% " in text
+    assert "read its claims here (robot time) at that rate" in text and "mean delay" not in text
+    assert said(("paper", 4)) == text  # the design, not the seed, is what was measured
+    assert said(("quick", 0)) == ""  # nothing measured for that study
+    assert said(("paper", 0), inter.assign(variants_per_cell=6)) == ""  # another design
+    calm = interaction({**truth, ("all_pairs", "robot_time"): (SMALL, NOT_CHANGED)}).assign(
+        variants_per_cell=3)
+    assert said(("paper", 0), calm) == ""  # no claim across the pairs to qualify
+
+
 SPAN = {"a": (1, 1, 1), "b": (2, 2, 3), "c": (3, 2, 3)}
 
 

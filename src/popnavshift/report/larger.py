@@ -47,6 +47,21 @@ class Unresolved:
     why: str
 
 
+@dataclass(frozen=True)
+class Measured:
+    """A rule's false-positive rate measured on ``replicates`` null replicates of a study's
+    design (seed ``seed``) for one comparison at ``variants_per_cell``: claims and placebos
+    at 5 % and at the headline's level, each with its Clopper–Pearson interval."""
+
+    comparison: str
+    test: str
+    seed: int
+    replicates: int
+    variants_per_cell: int
+    at_05: dict
+    at_level: dict
+
+
 def _record(study: str) -> dict:
     text = resources.files("popnavshift").joinpath("data/larger_studies.json").read_text("utf-8")
     rec = json.loads(text).get(study)
@@ -116,3 +131,10 @@ def larger_clause(larger: Larger, seed: int | None, n_rows: int = 2) -> str:
              else f"on seed {larger.seed}, not this study's")
     return (f"the built-in study {larger.name} ({cost}; `popnavshift run {larger.name}`) "
             f"decided {'it' if n_rows == 1 else 'them'} {where}")
+
+
+def measured_calibration(study: str) -> list[Measured]:
+    """The false-positive rates measured on many null replicates of ``study``'s design."""
+    return [Measured(c["comparison"], c["test"], int(c["seed"]), int(c["replicates"]),
+                     int(c["variants_per_cell"]), c["at_05"], c["at_level"])
+            for c in _record(study).get("calibration", [])]

@@ -34,6 +34,7 @@ from ..analysis.verdicts import ABOVE, BELOW, MIN_NULLS_T, SMALL, UNDECIDED
 from .larger import (
     larger_clause,
     larger_studies,
+    measured_calibration,
     measured_here,
     row_keys,
     split_undecided,
@@ -320,6 +321,42 @@ def undecided_sentence(rows: pd.DataFrame, power: pd.DataFrame | None,
             "text": " ".join(parts + ([extra] if extra else []))}
 
 
+def measured_rate_sentence(rows: pd.DataFrame, inter: pd.DataFrame | None,
+                           study: tuple[str, int | None] | None) -> dict[str, str] | None:
+    """Where the interaction test's false-positive rate was measured above nominal on many
+    null replicates of this very design (:func:`.larger.measured_calibration`; the design is
+    the same whatever the seed), the claims it made here are said to hold at that rate."""
+    if study is None or inter is None or inter.empty or "variants_per_cell" not in inter:
+        return None
+    said = []
+    for m in measured_calibration(study[0]):
+        own = inter[inter["comparison"] == m.comparison]
+        claims = rows[(rows["comparison"] == m.comparison) & (rows["inter"] == CHANGES)]
+        if m.test != "interaction" or own.empty or claims.empty or int(
+                own["variants_per_cell"].iloc[0]) != m.variants_per_cell:
+            continue
+
+        def rate(at: dict) -> str:
+            return (f"{at['claims']} of {at['placebos']} placebos ({100 * at['rate']:.1f}% "
+                    f"[{100 * at['cp_low']:.1f}, {100 * at['cp_high']:.1f}])")
+
+        level = float(own["alpha_row"].max()) if "alpha_row" in own else np.nan
+        said.append(
+            f"On {m.replicates} null replicates of this design ({m.variants_per_cell} variants "
+            f"per cell; seed {m.seed}) each taken as the observed, the interaction test "
+            f"{phrase(m.comparison)} claimed a change on {rate(m.at_05)} at 5% and on "
+            f"{rate(m.at_level)} at the headline's level"
+            + (f" ({level:.3g})" if np.isfinite(level) else "")
+            + f": read its claims here ({join([label(x) for x in by_metric(claims)['metric']])})"
+            " at that rate, not the nominal one (the placebos share replicates, so the "
+            "intervals are narrower than independent draws would give; with more variants "
+            "per cell, as in the larger built-in studies, the rate is not measured).")
+    if not said:
+        return None
+    return {"lead": "One test claims more often than nominal at this design.",
+            "text": " ".join(said)}
+
+
 def _populations(ranks: pd.DataFrame | None) -> list[str]:
     if ranks is None or ranks.empty:
         return []
@@ -351,7 +388,8 @@ def answer_sentences(tables: dict[str, pd.DataFrame],
         answer = [method_sentence(rows, tables.get("evidence_interaction")),
                   aspect_sentence(rows, BURDEN, "Pedestrian burden", head, pops),
                   aspect_sentence(rows, ROBOT, "Robot time", head, pops, designs=False),
-                  undecided_sentence(rows, tables.get("evidence_power"), study)]
+                  undecided_sentence(rows, tables.get("evidence_power"), study),
+                  measured_rate_sentence(rows, tables.get("evidence_interaction"), study)]
     answer.append(order_sentence(ranks))
     support = [decided_sentence(head), crossover_sentence(tables.get("evidence_crossovers")),
                calibration_sentence(tables.get("evidence_calibration"))]
