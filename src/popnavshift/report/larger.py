@@ -76,12 +76,6 @@ def larger_studies(study: str) -> list[Larger]:
     return sorted(found, key=lambda s: s.runs)
 
 
-def larger_study(study: str) -> Larger | None:
-    """The smallest larger built-in study recorded for ``study`` (None if there is none)."""
-    found = larger_studies(study)
-    return found[0] if found else None
-
-
 def unresolved(study: str) -> list[Unresolved]:
     """The rows of ``study`` that no measured design decided, with why."""
     rec = _record(study)

@@ -321,6 +321,12 @@ def undecided_sentence(rows: pd.DataFrame, power: pd.DataFrame | None,
             "text": " ".join(parts + ([extra] if extra else []))}
 
 
+def _count(at: dict) -> str:
+    """``28 of 375 placebos (7.5% [5.0, 10.6])``."""
+    return (f"{at['claims']} of {at['placebos']} placebos ({100 * at['rate']:.1f}% "
+            f"[{100 * at['cp_low']:.1f}, {100 * at['cp_high']:.1f}])")
+
+
 def measured_rate_sentence(rows: pd.DataFrame, inter: pd.DataFrame | None,
                            study: tuple[str, int | None] | None) -> dict[str, str] | None:
     """Where the interaction test's false-positive rate was measured above nominal on many
@@ -336,16 +342,12 @@ def measured_rate_sentence(rows: pd.DataFrame, inter: pd.DataFrame | None,
                 own["variants_per_cell"].iloc[0]) != m.variants_per_cell:
             continue
 
-        def rate(at: dict) -> str:
-            return (f"{at['claims']} of {at['placebos']} placebos ({100 * at['rate']:.1f}% "
-                    f"[{100 * at['cp_low']:.1f}, {100 * at['cp_high']:.1f}])")
-
         level = float(own["alpha_row"].max()) if "alpha_row" in own else np.nan
         said.append(
             f"On {m.replicates} null replicates of this design ({m.variants_per_cell} variants "
             f"per cell; seed {m.seed}) each taken as the observed, the interaction test "
-            f"{phrase(m.comparison)} claimed a change on {rate(m.at_05)} at 5% and on "
-            f"{rate(m.at_level)} at the headline's level"
+            f"{phrase(m.comparison)} claimed a change on {_count(m.at_05)} at 5% and on "
+            f"{_count(m.at_level)} at the headline's level"
             + (f" ({level:.3g})" if np.isfinite(level) else "")
             + f": read its claims here ({join([label(x) for x in by_metric(claims)['metric']])})"
             " at that rate, not the nominal one (the placebos share replicates, so the "
