@@ -3,6 +3,8 @@ and through the real analysis on synthetic studies where the truth is known."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -12,14 +14,18 @@ from popnavshift.analysis.evidence import test_comparisons as run_tests
 from popnavshift.analysis.interaction import (
     CHANGES,
     NOT_SHOWN,
+    PREDICTION,
+    RECOMBINED,
     interaction_placebos,
+    interaction_test,
     interaction_verdicts,
     one_sided,
     rank_statistic,
 )
 from popnavshift.analysis.nulls import headline_designs
+from popnavshift.analysis.significance import Orderings
 from popnavshift.analysis.verdicts import DESCRIPTIVE, clopper_pearson
-from popnavshift.populations.identity import MATCHED_PAIR
+from popnavshift.populations.identity import MATCHED_PAIR, PopulationSpec
 from synth_study import design_specs, swap_study
 
 
@@ -153,3 +159,73 @@ def test_rows_without_a_term_say_why_not_that_replicates_are_missing():
     assert NO_TERMS in interaction_sentence(inter, "HRVO")
     few = interaction_sentence(inter.assign(terms=4), "HRVO")
     assert "too few null replicates" in few and NO_TERMS not in few
+
+
+def unit_orderings(rng: np.random.Generator, *, n_null: int, effect: Sequence[float] = (),
+                   n_cells: int = 8, n_boot: int = 40) -> tuple[Orderings, list, list]:
+    """Orderings of 4 populations, each with ``n_null`` independent stand-ins (one unit per
+    population, as size-matched subsets are): every population instance moves all its
+    cells' controller difference by a heavy-tailed draw of its own (t₂: what makes the null
+    T far from normal), plus episode noise; observed population i by ``effect[i]`` more."""
+    pops = ["a", "b", "c", "d"]
+    names = [f"{p}{k}" for k in range(n_null + 1) for p in pops]
+    shift = rng.standard_t(2, size=(len(names), 1, 1))
+    shift[:len(effect), 0, 0] += effect
+    diff = shift + 0.3 * rng.standard_normal((len(names), n_cells, 1))
+    boot = (diff[None] + 0.5 * rng.standard_normal((n_boot, *diff.shape))).astype(np.float32)
+    nan = np.full(diff.shape, np.nan)
+    o = Orderings("mean_delay", names, pd.DataFrame({"cell": range(n_cells)}), [("x", "y")],
+                  diff, nan, nan, nan, nan, boot, 0.9, 0.0, np.full(n_cells, 5))
+    pairs = [(p, q) for i, p in enumerate(pops) for q in pops[i + 1:]]
+    observed = [(f"{p}0", f"{q}0") for p, q in pairs]
+    nulls = [[(f"{p}{k}", f"{q}{k}") for p, q in pairs] for k in range(1, n_null + 1)]
+    return o, observed, nulls
+
+
+UNITS = tuple(ord(x) - ord("a") for pair in ("ab", "ac", "ad", "bc", "bd", "cd") for x in pair)
+
+
+def test_recombined_designs_make_an_exact_test():
+    """400 null designs whose populations carry heavy-tailed shifts: the randomization test
+    over designs recombined population by population claims at its nominal 10 %, neither
+    more nor (beyond chance) less."""
+    rng = np.random.default_rng(11)
+    n, claims = 400, 0
+    for _ in range(n):
+        o, observed, nulls = unit_orderings(rng, n_null=5)
+        claims += interaction_test(o, observed, nulls, units=UNITS, draws=99)[0]["p_t"] <= 0.1
+    low, high = clopper_pearson(claims, n)
+    assert low <= 0.1 <= high
+
+
+def test_recombined_designs_find_a_planted_interaction_and_are_reproducible():
+    rng = np.random.default_rng(5)
+    o, observed, nulls = unit_orderings(rng, n_null=9, effect=(-30.0, -10.0, 10.0, 30.0))
+    row, reps = interaction_test(o, observed, nulls, units=UNITS, draws=199)
+    assert row["reference"] == RECOMBINED and row["n_null"] == 9
+    assert row["p_t"] == pytest.approx(1 / 200) and row["t"] > 2  # above every draw
+    # carried by one population alone, the observed is matched by the recombinations that
+    # draw that population's unit from the observed (1 in 10): p cannot fall far below it
+    one, _ = interaction_test(*unit_orderings(rng, n_null=9, effect=(0, 0, 0, 30.0)),
+                              units=UNITS, draws=199)
+    assert 0.03 <= one["p_t"] <= 0.3
+    again = interaction_test(o, observed, nulls, units=UNITS, draws=199)
+    assert again[0] == row and again[1].equals(reps)
+    # placebos against the next 3 replicates, each by its own recombinations
+    _, cyc = interaction_test(o, observed, nulls, units=UNITS, draws=99, null_size=3)
+    assert cyc["placebo_p_t"].between(0.01, 1).all() and len(cyc) == 9
+    assert interaction_test(o, observed, nulls)[0]["reference"] == PREDICTION
+
+
+def test_a_pairs_design_has_one_unit_per_population_and_one_for_the_swap():
+    specs = [PopulationSpec(p) for p in ("mixed", "high_caution", *MATCHED_PAIR)]
+    specs += [PopulationSpec.sized(p, k) for k in (1, 2) for p in
+              ("mixed", "high_caution", *MATCHED_PAIR)]
+    specs += [PopulationSpec.swap(k, arm) for k in (1, 2) for arm in "ab"]
+    d = headline_designs(specs, ["mixed", "high_caution", *MATCHED_PAIR])["all_pairs"]
+    by_pair = dict(zip(d.observed, zip(d.units[0::2], d.units[1::2], strict=True),
+                       strict=True))
+    swap = by_pair[MATCHED_PAIR]
+    assert swap[0] == swap[1]  # both arms of a swap permutation move together
+    assert by_pair[("mixed", "high_caution")][0] == by_pair[("mixed", MATCHED_PAIR[0])][0]
+    assert len(set(d.units)) == 5  # 4 populations' subsets and the swap

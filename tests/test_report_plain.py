@@ -223,6 +223,7 @@ def test_an_undecided_rate_names_what_would_decide_it_and_leaves_a_place_for_a_s
 def test_the_paper_study_names_paper_large_for_the_rows_it_decided_and_no_study_else():
     truth = {("matched", "worst_decile"): (UNDECIDED, CHANGES),
              ("all_pairs", "blocked_pct"): (UNDECIDED, NOT_CHANGED),
+             ("all_pairs", "robot_time"): (SMALL, NOT_CHANGED),
              ("all_pairs", "mean_delay"): (ABOVE, NOT_CHANGED)}
     tables = {"evidence_headline": headline(truth), "evidence_interaction": interaction(truth)}
     answer, _ = answer_sentences(tables, ("paper", 0))
@@ -231,10 +232,13 @@ def test_the_paper_study_names_paper_large_for_the_rows_it_decided_and_no_study_
     named = [s for s in said if "paper-large" in s and "decided" in s and "No built-in" not in s]
     assert any("worst-decile" in s and "reversal" in s and "this study's seed" in s
                for s in named), said
-    assert any("mean delay across" in s and "interaction" in s for s in named), said
+    assert any("robot time across" in s and "interaction" in s for s in named), said
     nobody = [s for s in said if s.startswith("No built-in study")]
     assert any("blocked" in s.lower() for s in nobody) and not any(
         "worst-decile" in s for s in nobody), said
+    # the pairs' mean delay: no built-in study's exact test decided it, and why
+    mean = next(s for s in nobody if "mean delay" in s)
+    assert "interaction" in mean and "more null replicates" in mean, mean
     # a row measured undecidable says what was measured, not only "no built-in study"
     blocked = next(s for s in nobody if "blocked" in s.lower())
     assert blocked.startswith("No built-in study decides the reversal verdict") and (
@@ -275,13 +279,27 @@ def test_a_row_a_measurement_on_this_seed_settles_gets_the_measurement_not_the_m
     assert any("not this study's" in s for s in elsewhere)
 
 
-def test_a_test_measured_above_nominal_at_this_design_qualifies_its_claims_here():
-    # the paper study's record: across the pairs at 3 variants per cell the interaction
-    # test claimed on 7.5 % of 375 placebos at 5 %
+def test_a_test_measured_above_nominal_at_this_design_qualifies_its_claims_here(monkeypatch):
+    # a planted record: across the pairs at 3 variants per cell the prediction t claimed on
+    # 7.5 % of 375 placebos at 5 % (what it did on the paper study before the pairs' test
+    # became the randomization test over recombined designs)
+    from popnavshift.analysis.interaction import PREDICTION, RECOMBINED
+    from popnavshift.report import plain
+    from popnavshift.report.larger import Measured
+
+    def record(reference: str, at_05: tuple[int, float]) -> Measured:
+        return Measured("all_pairs", "interaction", reference, 0, 75, 3,
+                        {"claims": at_05[0], "placebos": 375, "rate": at_05[0] / 375,
+                         "cp_low": at_05[1], "cp_high": 0.106},
+                        {"claims": 5, "placebos": 375, "rate": 5 / 375, "cp_low": 0.0043,
+                         "cp_high": 0.0308})
+
+    records = {"paper": [record(PREDICTION, (28, 0.0501))]}
+    monkeypatch.setattr(plain, "measured_calibration", lambda s: records.get(s, []))
     truth = {("matched", "robot_time"): (SMALL, CHANGES),
              ("all_pairs", "robot_time"): (SMALL, CHANGES),
              ("all_pairs", "mean_delay"): (ABOVE, NOT_CHANGED)}
-    inter = interaction(truth).assign(variants_per_cell=[12, 3, 3])
+    inter = interaction(truth).assign(variants_per_cell=[12, 3, 3], reference=PREDICTION)
 
     def said(study, inter=inter) -> str:
         answer, _ = answer_sentences({"evidence_headline": headline(truth),
@@ -295,9 +313,12 @@ def test_a_test_measured_above_nominal_at_this_design_qualifies_its_claims_here(
     assert said(("paper", 4)) == text  # the design, not the seed, is what was measured
     assert said(("quick", 0)) == ""  # nothing measured for that study
     assert said(("paper", 0), inter.assign(variants_per_cell=6)) == ""  # another design
+    assert said(("paper", 0), inter.assign(reference=RECOMBINED)) == ""  # another test
     calm = interaction({**truth, ("all_pairs", "robot_time"): (SMALL, NOT_CHANGED)}).assign(
-        variants_per_cell=3)
+        variants_per_cell=3, reference=PREDICTION)
     assert said(("paper", 0), calm) == ""  # no claim across the pairs to qualify
+    records["paper"] = [record(PREDICTION, (20, 0.034))]
+    assert said(("paper", 0)) == ""  # measured, and not above nominal: nothing to qualify
 
 
 SPAN = {"a": (1, 1, 1), "b": (2, 2, 3), "c": (3, 2, 3)}

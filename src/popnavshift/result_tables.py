@@ -52,10 +52,13 @@ RESULT_TABLES: tuple[ResultTable, ...] = (
                 "more than under the null? — per comparison and metric",
                 ("comparison", "metric"),
                 "statistic (rankz: the mean over (pair, cell, controller pair) of the rank of "
-                "|dD/SE| among the designs compared), T, terms; null_mean, null_sd of the null "
-                "replicates' T (n_null, of kind `null`); t on df, its one-sided p_t, p_adj "
-                "(× family), alpha_row (the level each row is decided at), p_value (exact "
-                "permutation), verdict"),
+                "|dD/SE| among the designs compared), reference (`recombined designs`: the "
+                "exact randomization test over designs recombined unit by unit from the "
+                "observed and its n_null replicates — null_mean, null_sd their T, t the "
+                "standardized excess, df empty, p_t = p_value the randomization p; `prediction "
+                "t`, a comparison of one unit: null_mean, null_sd of the n_null replicates' T, "
+                "t on df, its one-sided p_t, p_value the exact permutation p), T, terms; p_adj "
+                "(× family), alpha_row (the level each row is decided at), verdict"),
     ResultTable("evidence_null_rates", "answer",
                 "one null replicate's rate, per comparison, metric and rule",
                 ("comparison", "metric", "rule", "replicate"),
@@ -134,7 +137,7 @@ RESULT_TABLES: tuple[ResultTable, ...] = (
                 "one null replicate's interaction statistic, per comparison and metric",
                 ("comparison", "metric", "replicate"),
                 "T (ranked among the observed and every replicate); placebo_t, placebo_p_t: "
-                "the replicate as the observed against the others (ranks among the replicates)"),
+                "the replicate as the observed against the others, by the row's reference"),
     ResultTable("evidence_placebo_crossovers", "calibration",
                 "one crossover test on one null replicate's populations (a placebo)",
                 ("comparison", "metric", "replicate")),

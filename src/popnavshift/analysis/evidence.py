@@ -124,7 +124,8 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
                 frames["pair_null"].append(one_reps.assign(comparison=label, baseline=other))
             if null_pairs and interaction:
                 row, reps = interaction_test(o, obs_pairs, null_pairs,
-                                             null_size=(null_sizes or {}).get(label))
+                                             null_size=(null_sizes or {}).get(label),
+                                             units=d.units)
                 frames["inter"].append(pd.DataFrame([row]).assign(comparison=label))
                 frames["inter_null"].append(reps.assign(comparison=label))
             if rates_only:

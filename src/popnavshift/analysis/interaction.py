@@ -56,24 +56,35 @@ NO_TERMS = ("no controller difference varies over its cell's episodes; more epis
             "cell would test it")
 
 
+def _inflation(o: Orderings) -> np.ndarray:
+    """(U, 1) √(n/(n−1)) of every unit's episode count (NaN below 2 episodes)."""
+    n = o.n_episodes.astype(float)
+    with np.errstate(all="ignore"):
+        return np.where(n >= 2, np.sqrt(n / (n - 1)), np.nan)[:, None]
+
+
+def _pair_z(o: Orderings, ia: Sequence[int] | np.ndarray, ib: Sequence[int] | np.ndarray,
+            infl: np.ndarray) -> np.ndarray:
+    """(len(ia), U, C) z = dD / SE of the population pairs (ia[i], ib[i]) (NaN where the
+    term has no value or no positive SE)."""
+    dd = o.diff[ia] - o.diff[ib]
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN terms → NaN
+        # the resampled differences in float64, so that equal |z| tie exactly
+        se = np.nanstd(o.boot[:, ia].astype(np.float64) - o.boot[:, ib], axis=0) * infl
+        ok = np.isfinite(dd) & np.isfinite(se) & (se > 0)
+        return np.where(ok, dd / np.where(ok, se, 1.0), np.nan)
+
+
 def interaction_z(o: Orderings, groups: Sequence[Sequence[tuple[str, str]]]) -> np.ndarray:
     """(K, Π, U, C) z = dD / SE of every term of each design of ``groups`` (a list of
     population pairs per design, all of the same length Π): NaN where the term has no
     value or no positive SE."""
-    n = o.n_episodes.astype(float)
-    with np.errstate(all="ignore"):
-        infl = np.where(n >= 2, np.sqrt(n / (n - 1)), np.nan)[:, None]  # (U, 1)
+    infl = _inflation(o)
     out = np.full((len(groups), len(groups[0]), *o.diff.shape[1:]), np.nan)
     for k, pairs in enumerate(groups):
-        ia = [o.index(a) for a, _ in pairs]
-        ib = [o.index(b) for _, b in pairs]
-        dd = o.diff[ia] - o.diff[ib]
-        with np.errstate(all="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN terms → NaN
-            # the resampled differences in float64, so that equal |z| tie exactly
-            se = np.nanstd(o.boot[:, ia].astype(np.float64) - o.boot[:, ib], axis=0) * infl
-            ok = np.isfinite(dd) & np.isfinite(se) & (se > 0)
-            out[k] = np.where(ok, dd / np.where(ok, se, 1.0), np.nan)
+        out[k] = _pair_z(o, [o.index(a) for a, _ in pairs], [o.index(b) for _, b in pairs],
+                         infl)
     return out
 
 
@@ -112,28 +123,111 @@ def one_sided(t0: float, null: np.ndarray) -> dict:
     return {**out, "t": float(t), "p_t": float(stats.t.sf(t, p - 1))}
 
 
+#: recombined designs each randomization test draws (its p is at least 1/(DRAWS + 1))
+DRAWS = 999
+#: how a row's p was computed: against recombined designs, or by the prediction t
+RECOMBINED = "recombined designs"
+PREDICTION = "prediction t"
+
+
+class Recombined:
+    """The randomization reference of a comparison whose null designs are made of several
+    independently drawn units (:class:`.nulls.Design` ``units``: a size-matched subset per
+    population, a swap permutation of the matched pair).
+
+    A design is recombined by taking each unit's populations from one index of a pool —
+    the tested design and its null replicates — drawn uniformly and independently per
+    unit. Under the null every unit's draws are exchangeable across the pool, so the tested
+    design is exchangeable with its recombinations (the per-unit relabelling group: Hemerik
+    & Goeman 2018, exact with the tested design among R random elements):
+    p = (1 + #{T_r ≥ T₀}) / (1 + R) is exact, whatever the shape of T's distribution —
+    which is why it replaces the prediction t here (its placebo rate was above nominal
+    across the population pairs). z of a population pair is computed once and reused by
+    every design and placebo that draws it."""
+
+    def __init__(self, o: Orderings, groups: Sequence[Sequence[tuple[str, str]]],
+                 units: Sequence[int]) -> None:
+        self.o = o
+        self.pa = np.array([[o.index(a) for a, _ in g] for g in groups])  # (K, Π)
+        self.pb = np.array([[o.index(b) for _, b in g] for g in groups])
+        u = np.asarray(units, int)
+        self.u0, self.u1 = u[0::2], u[1::2]
+        self.n_units = int(u.max()) + 1
+        self.infl = _inflation(o)
+        self.cache: dict[int, np.ndarray] = {}
+
+    def z(self, designs: np.ndarray) -> np.ndarray:
+        """(R, Π, U, C) z of the designs ``designs`` (R, units): each unit's design index."""
+        pi = np.arange(self.pa.shape[1])
+        n = len(self.o.populations)
+        keys = self.pa[designs[:, self.u0], pi] * n + self.pb[designs[:, self.u1], pi]
+        uniq, inv = np.unique(keys, return_inverse=True)
+        new = np.array([k for k in uniq.tolist() if k not in self.cache], int)
+        for i in range(0, len(new), 64):
+            ks = new[i:i + 64]
+            self.cache.update(zip(ks.tolist(), _pair_z(self.o, ks // n, ks % n, self.infl),
+                                  strict=True))
+        table = np.stack([self.cache[k] for k in uniq.tolist()])
+        return table[inv.reshape(keys.shape)]
+
+    def test(self, tested: int, pool: Sequence[int] | np.ndarray, *, draws: int,
+             seed: Sequence[int]
+             ) -> tuple[float, dict]:
+        """T of design ``tested`` among ``draws`` designs recombined from it and ``pool``
+        (design indices), and the test's fields (:func:`one_sided`'s, ``t`` the
+        standardized excess over the recombined designs, ``p_t`` = ``p_value`` the
+        randomization p)."""
+        idx = np.array([tested, *pool])
+        rng = np.random.default_rng(list(seed))
+        picks = rng.integers(len(idx), size=(draws, self.n_units))
+        T = rank_statistic(self.z(idx[np.vstack([np.zeros((1, self.n_units), int), picks])]))
+        ref = T[1:][np.isfinite(T[1:])]
+        t0, sd = float(T[0]), float(ref.std(ddof=1)) if ref.size > 1 else np.nan
+        p = permutation_p(t0, ref) if ref.size and np.isfinite(t0) else np.nan
+        return t0, {"null_mean": float(ref.mean()) if ref.size else np.nan, "null_sd": sd,
+                    "t": (t0 - float(ref.mean())) / sd if sd > 0 else np.nan, "df": np.nan,
+                    "p_t": p, "p_value": p, "n_null": len(pool)}
+
+
 def interaction_test(o: Orderings, observed: Sequence[tuple[str, str]],
                      nulls: Sequence[Sequence[tuple[str, str]]], *,
-                     null_size: int | None = None) -> tuple[dict, pd.DataFrame]:
+                     null_size: int | None = None, units: Sequence[int] = (),
+                     draws: int = DRAWS) -> tuple[dict, pd.DataFrame]:
     """The interaction test of one metric's orderings ``o``: the observed pairs against
     the null replicates' pairs (module doc). Returns the observed row (``metric``,
-    ``statistic``, ``T``, ``terms``, :func:`one_sided`'s fields) and one row per replicate:
-    its ``T`` among all designs and, as a placebo against the other replicates (ranks
-    recomputed among the replicates), ``placebo_t`` and ``placebo_p_t``; with
-    ``null_size``, against the ``null_size`` replicates after it, cyclically (the study's
-    own design on more placebos: :func:`.calibrate.placebo_nulls`), ranks among those."""
+    ``statistic``, ``reference``, ``T``, ``terms``, :func:`one_sided`'s fields) and one row
+    per replicate: its ``T`` among all designs and, as a placebo against the other
+    replicates, ``placebo_t`` and ``placebo_p_t``; with ``null_size``, against the
+    ``null_size`` replicates after it, cyclically (the study's own design on more
+    placebos: :func:`.calibrate.placebo_nulls`). With ``units`` of two or more units
+    (:class:`.nulls.Design`) each test is the randomization test over ``draws`` recombined
+    designs (:class:`Recombined`; with ``null_size``, the observed's pool is the study's
+    own, its first ``null_size`` replicates), else the prediction t, ranks among the designs
+    compared."""
 
-    z = interaction_z(o, [list(observed), *map(list, nulls)])
+    groups = [list(observed), *map(list, nulls)]
+    z = interaction_z(o, groups)
     T = rank_statistic(z)
     terms = int(np.isfinite(z[0]).sum())
-    row = {"metric": o.metric, "statistic": STATISTIC, "T": float(T[0]), "terms": terms,
-           **one_sided(float(T[0]), T[1:])}
+    rec = Recombined(o, groups, units) if len(set(units)) > 1 and draws > 0 and nulls \
+        else None
+    seed = list(o.metric.encode())
+    if rec is not None:  # with null_size, against the study's own replicates (the first)
+        t0, d = rec.test(0, range(1, 1 + min(null_size or len(nulls), len(nulls))),
+                         draws=draws, seed=[0, *seed])
+        row = {"metric": o.metric, "statistic": STATISTIC, "reference": RECOMBINED, "T": t0,
+               "terms": terms, **d}
+    else:
+        row = {"metric": o.metric, "statistic": STATISTIC, "reference": PREDICTION,
+               "T": float(T[0]), "terms": terms, **one_sided(float(T[0]), T[1:])}
     reps = []
     if len(nulls) >= 2:
         placebo = rank_statistic(z[1:])
         for j in range(len(nulls)):
             rest = placebo_nulls(len(nulls), j, null_size)
-            if len(rest) == len(nulls) - 1:
+            if rec is not None:
+                d = rec.test(j + 1, rest + 1, draws=draws, seed=[j + 1, *seed])[1]
+            elif len(rest) == len(nulls) - 1:
                 d = one_sided(float(placebo[j]), placebo[rest])
             else:  # ranks among the placebo and its own null only
                 own = rank_statistic(z[1:][[j, *rest]])

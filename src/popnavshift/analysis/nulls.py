@@ -215,11 +215,20 @@ def family_verdicts(headline: pd.DataFrame, null_rates: pd.DataFrame, *,
 class Design(NamedTuple):
     """A headline comparison: its observed population pairs, one list of null pairs per
     null replicate (empty when the study ran none) and the kind of null design
-    (:data:`popnavshift.populations.identity.NULL_KINDS`) it is tested against."""
+    (:data:`popnavshift.populations.identity.NULL_KINDS`) it is tested against.
+
+    ``units``: per population of the observed pairs, two per pair in order, the unit of
+    the null design it belongs to — the populations drawn together, which a replicate
+    index moves as one (a size-matched subset standing in for one population, in every
+    pair it is in; both arms of a swap permutation). Units are drawn independently of one
+    another, so a design recombined from several replicates (unit by unit) is a null
+    design too: the interaction test's randomization reference
+    (:func:`.interaction.interaction_test`). Empty without null replicates."""
 
     observed: list[tuple[str, str]]
     nulls: list[list[tuple[str, str]]]
     null: str
+    units: tuple[int, ...] = ()
 
 
 def headline_designs(populations: Collection[PopulationSpec],
@@ -271,9 +280,24 @@ def comparison_design(pairs: Sequence[tuple[str, str]], populations: Collection[
         i = next((j for j, p in enumerate(pairs) if set(p) != set(MATCHED_PAIR)), 0)
         nulls = [[_names(NULL_KINDS[c].pair(p, k)) for c, p in zip(chosen, pairs, strict=True)]
                  for k in covered]
-        return Design(list(pairs), nulls, chosen[i])
+        return Design(list(pairs), nulls, chosen[i], _units(chosen, pairs, covered[0]))
     default = next((n for n, kind in kinds.items() if all(kind.pair(p, 1) for p in pairs)), "")
     return Design(list(pairs), [], default)
+
+
+def _units(chosen: Sequence[str], pairs: Sequence[tuple[str, str]], k: int
+           ) -> tuple[int, ...]:
+    """The unit of every population of ``pairs`` (two per pair): its null stand-in's role
+    and what it stands in for (the same in every replicate: a sized subset of one
+    population; both arms of a swap permutation, which stand in for the pair), numbered
+    in order of appearance."""
+    keys: dict[tuple[str, tuple[str, ...]], int] = {}
+    out = []
+    for c, p in zip(chosen, pairs, strict=True):
+        null = NULL_KINDS[c].pair(p, k)
+        assert null is not None  # a pair the chosen kind stands in for
+        out += [keys.setdefault((s.role, s.bases), len(keys)) for s in null]
+    return tuple(out)
 
 
 def _names(null: tuple[PopulationSpec, PopulationSpec] | None) -> tuple[str, str]:

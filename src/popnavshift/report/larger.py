@@ -50,11 +50,13 @@ class Unresolved:
 @dataclass(frozen=True)
 class Measured:
     """A rule's false-positive rate measured on ``replicates`` null replicates of a study's
-    design (seed ``seed``) for one comparison at ``variants_per_cell``: claims and placebos
-    at 5 % and at the headline's level, each with its Clopper–Pearson interval."""
+    design (seed ``seed``) for one comparison at ``variants_per_cell``, by the test's
+    ``reference`` (the interaction table's column): claims and placebos at 5 % and at the
+    headline's level, each with its Clopper–Pearson interval."""
 
     comparison: str
     test: str
+    reference: str
     seed: int
     replicates: int
     variants_per_cell: int
@@ -129,6 +131,7 @@ def larger_clause(larger: Larger, seed: int | None, n_rows: int = 2) -> str:
 
 def measured_calibration(study: str) -> list[Measured]:
     """The false-positive rates measured on many null replicates of ``study``'s design."""
-    return [Measured(c["comparison"], c["test"], int(c["seed"]), int(c["replicates"]),
+    return [Measured(c["comparison"], c["test"], c["reference"], int(c["seed"]),
+                     int(c["replicates"]),
                      int(c["variants_per_cell"]), c["at_05"], c["at_level"])
             for c in _record(study).get("calibration", [])]

@@ -26,11 +26,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..analysis.interaction import CHANGES, NO_TERMS
+from ..analysis.interaction import CHANGES, NO_TERMS, PREDICTION
 from ..analysis.interaction import NOT_SHOWN as NOT_CHANGED
 from ..analysis.power import POWER
 from ..analysis.reversals import COMPARISONS
-from ..analysis.verdicts import ABOVE, BELOW, MIN_NULLS_T, SMALL, UNDECIDED
+from ..analysis.verdicts import ABOVE, ALPHA, BELOW, MIN_NULLS_T, SMALL, UNDECIDED
 from .larger import (
     larger_clause,
     larger_studies,
@@ -330,19 +330,21 @@ def _count(at: dict) -> str:
 def measured_rate_sentence(rows: pd.DataFrame, inter: pd.DataFrame | None,
                            study: tuple[str, int | None] | None) -> dict[str, str] | None:
     """Where the interaction test's false-positive rate was measured above nominal on many
-    null replicates of this very design (:func:`.larger.measured_calibration`; the design is
-    the same whatever the seed), the claims it made here are said to hold at that rate."""
+    null replicates of this very design (:func:`.larger.measured_calibration`: the same test,
+    the same variants per cell; the design is the same whatever the seed), the claims it
+    made here are said to hold at that rate."""
     if study is None or inter is None or inter.empty or "variants_per_cell" not in inter:
         return None
     said = []
     for m in measured_calibration(study[0]):
         own = inter[inter["comparison"] == m.comparison]
         claims = rows[(rows["comparison"] == m.comparison) & (rows["inter"] == CHANGES)]
-        if m.test != "interaction" or own.empty or claims.empty or int(
-                own["variants_per_cell"].iloc[0]) != m.variants_per_cell:
-            continue
-
         level = float(own["alpha_row"].max()) if "alpha_row" in own else np.nan
+        above = m.at_05["cp_low"] > ALPHA or m.at_level["cp_low"] > level
+        if m.test != "interaction" or own.empty or claims.empty or not above or int(
+                own["variants_per_cell"].iloc[0]) != m.variants_per_cell or \
+                own.get("reference", pd.Series([PREDICTION])).iloc[0] != m.reference:
+            continue
         said.append(
             f"On {m.replicates} null replicates of this design ({m.variants_per_cell} variants "
             f"per cell; seed {m.seed}) each taken as the observed, the interaction test "
