@@ -16,6 +16,7 @@ from popnavshift.analysis.interaction import (
     NOT_SHOWN,
     PREDICTION,
     RECOMBINED,
+    Recombined,
     interaction_placebos,
     interaction_test,
     interaction_verdicts,
@@ -229,3 +230,17 @@ def test_a_pairs_design_has_one_unit_per_population_and_one_for_the_swap():
     assert swap[0] == swap[1]  # both arms of a swap permutation move together
     assert by_pair[("mixed", "high_caution")][0] == by_pair[("mixed", MATCHED_PAIR[0])][0]
     assert len(set(d.units)) == 5  # 4 populations' subsets and the swap
+
+
+def test_recombined_ranks_counted_per_population_pair_are_the_rank_statistic():
+    """The recombined test's T (mid-ranks counted once per distinct population pair) is
+    bit for bit :func:`rank_statistic` of the designs' z, with missing values and ties."""
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        o, observed, nulls = unit_orderings(rng, n_null=9)
+        o.boot[rng.random(o.boot.shape) < 0.01] = np.nan
+        o.diff[3], o.boot[:, 3] = o.diff[7], o.boot[:, 7]  # two populations alike: ties
+        rec = Recombined(o, [observed, *nulls], UNITS)
+        designs = rng.integers(10, size=(300, 4))
+        assert np.array_equal(rec.statistic(designs), rank_statistic(rec.z(designs)),
+                              equal_nan=True)

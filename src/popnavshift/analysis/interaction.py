@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pandas as pd
@@ -128,6 +129,9 @@ DRAWS = 999
 #: how a row's p was computed: against recombined designs, or by the prediction t
 RECOMBINED = "recombined designs"
 PREDICTION = "prediction t"
+#: up to this many distinct population pairs per pair of the design, ranks are counted per
+#: distinct pair (a pool of P + 1 designs draws at most (P + 1)² of them)
+FEW_PAIRS = 150
 
 
 class Recombined:
@@ -156,19 +160,57 @@ class Recombined:
         self.infl = _inflation(o)
         self.cache: dict[int, np.ndarray] = {}
 
-    def z(self, designs: np.ndarray) -> np.ndarray:
-        """(R, Π, U, C) z of the designs ``designs`` (R, units): each unit's design index."""
+    def _keys(self, designs: np.ndarray) -> np.ndarray:
+        """(R, Π) the population pair (a · n + b) each design draws for each pair, with
+        its z computed (once) into the cache."""
         pi = np.arange(self.pa.shape[1])
         n = len(self.o.populations)
         keys = self.pa[designs[:, self.u0], pi] * n + self.pb[designs[:, self.u1], pi]
+        new = np.array([k for k in np.unique(keys).tolist() if k not in self.cache], int)
+        chunks = [new[i:i + 64] for i in range(0, len(new), 64)]
+        # numpy releases the GIL in the resampled differences' reductions: two threads
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            for ks, z in zip(chunks, pool.map(lambda k: _pair_z(self.o, k // n, k % n,
+                                                                  self.infl), chunks),
+                             strict=True):
+                self.cache.update(zip(ks.tolist(), z, strict=True))
+        return keys
+
+    def z(self, designs: np.ndarray) -> np.ndarray:
+        """(R, Π, U, C) z of the designs ``designs`` (R, units): each unit's design index."""
+        keys = self._keys(designs)
         uniq, inv = np.unique(keys, return_inverse=True)
-        new = np.array([k for k in uniq.tolist() if k not in self.cache], int)
-        for i in range(0, len(new), 64):
-            ks = new[i:i + 64]
-            self.cache.update(zip(ks.tolist(), _pair_z(self.o, ks // n, ks % n, self.infl),
-                                  strict=True))
-        table = np.stack([self.cache[k] for k in uniq.tolist()])
-        return table[inv.reshape(keys.shape)]
+        return np.stack([self.cache[k] for k in uniq.tolist()])[inv.reshape(keys.shape)]
+
+    def statistic(self, designs: np.ndarray) -> np.ndarray:
+        """(R,) T of the designs: :func:`rank_statistic` of :meth:`z`, the same numbers,
+        with each term's mid-ranks computed once per distinct population pair (a pair
+        drawn by many designs shares its rank) instead of sorting R values per term (or
+        by sorting, when a pair is drawn in more than :data:`FEW_PAIRS` ways)."""
+        keys = self._keys(designs)
+        if max(len(np.unique(k)) for k in keys.T) > FEW_PAIRS:
+            return rank_statistic(self.z(designs))
+        scaled = np.full((len(keys), keys.shape[1], self.o.diff[0].size), np.nan)
+        n_fin = np.zeros((keys.shape[1], self.o.diff[0].size))
+        for j in range(keys.shape[1]):
+            uniq, inv, count = np.unique(keys[:, j], return_inverse=True, return_counts=True)
+            v = np.abs(np.stack([self.cache[k].ravel() for k in uniq.tolist()]))  # (n, T)
+            fin = np.isfinite(v)
+            w = count[:, None] * fin  # designs with each finite value
+            lt = np.zeros(v.shape)
+            eq = np.zeros(v.shape)
+            for i in range(len(uniq)):  # designs below, and level with, value i
+                lt[i] = (w * (v < v[i])).sum(axis=0)
+                eq[i] = (w * (v == v[i])).sum(axis=0)
+            n = w.sum(axis=0)
+            with np.errstate(all="ignore"):
+                r = lt + (eq + 1) / 2  # the mid-rank among the designs with a finite value
+                scaled[:, j] = np.where(fin, (r - 1) / (n - 1), np.nan)[inv]
+            n_fin[j] = n
+        keep = (n_fin >= 2).ravel()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            return np.nanmean(scaled.reshape(len(keys), -1)[:, keep], axis=1)
 
     def test(self, tested: int, pool: Sequence[int] | np.ndarray, *, draws: int,
              seed: Sequence[int]
@@ -180,7 +222,7 @@ class Recombined:
         idx = np.array([tested, *pool])
         rng = np.random.default_rng(list(seed))
         picks = rng.integers(len(idx), size=(draws, self.n_units))
-        T = rank_statistic(self.z(idx[np.vstack([np.zeros((1, self.n_units), int), picks])]))
+        T = self.statistic(idx[np.vstack([np.zeros((1, self.n_units), int), picks])])
         ref = T[1:][np.isfinite(T[1:])]
         t0, sd = float(T[0]), float(ref.std(ddof=1)) if ref.size > 1 else np.nan
         p = permutation_p(t0, ref) if ref.size and np.isfinite(t0) else np.nan

@@ -18,8 +18,10 @@ decided at α/m (Bonferroni over its m rates per rule,
 Its second question, as the study's (:mod:`popnavshift.analysis.interaction`): do the
 controller's differences from the baselines change with the population more than under its
 null runs — the rankz interaction test on the controller's pairs only, per design and
-metric, one-sided, decided over the card's interaction rows (α/m), with its leave-one-out
-placebos in the card's calibration. It says nothing of orderings crossing; the label does.
+metric, one-sided (across the population pairs the exact test over recombined designs,
+under the matched shift the prediction t), decided over the card's interaction rows (α/m),
+with its placebos in the card's calibration. It says nothing of orderings crossing; the
+label does.
 
 The card's label, from the raw rule (whose rates the power advice and the calibration
 measure): **population-sensitive** when some (design, baseline, metric) rate is above
