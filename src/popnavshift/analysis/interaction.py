@@ -172,6 +172,8 @@ class Recombined:
         keys = self.pa[designs[:, self.u0], pi] * n + self.pb[designs[:, self.u1], pi]
         new = np.array([k for k in np.unique(keys).tolist() if k not in self.cache], int)
         chunks = [new[i:i + 64] for i in range(0, len(new), 64)]
+        if not chunks:
+            return keys
         # numpy releases the GIL in the resampled differences' reductions: two threads
         with ThreadPoolExecutor(max_workers=2) as pool:
             for ks, z in zip(chunks, pool.map(lambda k: _pair_z(self.o, k // n, k % n,
@@ -252,11 +254,13 @@ def interaction_test(o: Orderings, observed: Sequence[tuple[str, str]],
     compared."""
 
     groups = [list(observed), *map(list, nulls)]
-    z = interaction_z(o, groups)
-    T = rank_statistic(z)
-    terms = int(np.isfinite(z[0]).sum())
     rec = Recombined(o, groups, units) if len(set(units)) > 1 and draws > 0 and nulls \
         else None
+    # the designs' own z: from the recombinations' cache when there is one (computed once)
+    z = interaction_z(o, groups) if rec is None else \
+        rec.z(np.repeat(np.arange(len(groups))[:, None], rec.n_units, axis=1))
+    T = rank_statistic(z)
+    terms = int(np.isfinite(z[0]).sum())
     seed = list(o.metric.encode())
     if rec is not None:  # with null_size, against the study's own replicates (the first)
         t0, d = rec.test(0, range(1, 1 + min(null_size or len(nulls), len(nulls))),
@@ -268,12 +272,12 @@ def interaction_test(o: Orderings, observed: Sequence[tuple[str, str]],
                "T": float(T[0]), "terms": terms, **one_sided(float(T[0]), T[1:])}
     reps = []
     if len(nulls) >= 2:
-        placebo = rank_statistic(z[1:])
+        placebo = rank_statistic(z[1:]) if rec is None else None
         for j in range(len(nulls)):
             rest = placebo_nulls(len(nulls), j, null_size)
             if rec is not None:
                 d = rec.test(j + 1, rest + 1, draws=draws, seed=[j + 1, *seed])[1]
-            elif len(rest) == len(nulls) - 1:
+            elif placebo is not None and len(rest) == len(nulls) - 1:
                 d = one_sided(float(placebo[j]), placebo[rest])
             else:  # ranks among the placebo and its own null only
                 own = rank_statistic(z[1:][[j, *rest]])

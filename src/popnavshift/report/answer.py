@@ -150,10 +150,9 @@ def interaction_block(inter: pd.DataFrame) -> Block:
     """The interaction test per comparison and metric, beside the headline."""
     rows = []
     for r in inter.sort_values(["comparison", "metric"], kind="stable").itertuples():
-        recombined = getattr(r, "reference", PREDICTION) == RECOMBINED
-        rows.append([r.comparison, LABELS.get(r.metric, r.metric),
-                     "recombined designs" if recombined else "prediction t",
-                     fmt(r.T, "{:.3f}"),
+        test = getattr(r, "reference", PREDICTION)
+        recombined = test == RECOMBINED
+        rows.append([r.comparison, LABELS.get(r.metric, r.metric), test, fmt(r.T, "{:.3f}"),
                      f"{fmt(r.null_mean, '{:.3f}')} (SD {fmt(r.null_sd, '{:.3f}')})",
                      fmt(r.t) if recombined else f"{fmt(r.t)} on {int(r.df)} df", _p(r.p_t),
                      _p(r.p_adj), _p(r.p_value), int(r.n_null), Cell(r.verdict, "strong")])
