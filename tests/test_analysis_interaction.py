@@ -8,6 +8,7 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 import pytest
+from scipy import stats
 
 from popnavshift.analysis.calibrate import calibration_table
 from popnavshift.analysis.evidence import test_comparisons as run_tests
@@ -22,6 +23,7 @@ from popnavshift.analysis.interaction import (
     interaction_verdicts,
     one_sided,
     rank_statistic,
+    weighted_midranks,
 )
 from popnavshift.analysis.nulls import headline_designs
 from popnavshift.analysis.significance import Orderings
@@ -244,3 +246,26 @@ def test_recombined_ranks_counted_per_population_pair_are_the_rank_statistic():
         designs = rng.integers(10, size=(300, 4))
         assert np.array_equal(rec.statistic(designs), rank_statistic(rec.z(designs)),
                               equal_nan=True)
+    # a pool of 31 designs: up to 961 distinct population pairs per pair of the design
+    o, observed, nulls = unit_orderings(rng, n_null=30)
+    rec = Recombined(o, [observed, *nulls], UNITS)
+    designs = rng.integers(31, size=(3000, 4))
+    assert np.array_equal(rec.statistic(designs), rank_statistic(rec.z(designs)),
+                          equal_nan=True)
+
+
+def test_weighted_midranks_are_the_midranks_of_the_repeated_values():
+    """Each value's mid-rank among its column's values repeated w times is scipy's
+    mid-rank of the repeated column, with ties, zero weights and missing values."""
+    rng = np.random.default_rng(8)
+    v = rng.integers(0, 6, size=(40, 7)).astype(float)  # many ties
+    v[rng.random(v.shape) < 0.1] = np.nan
+    w = rng.integers(0, 4, size=v.shape) * np.isfinite(v)
+    got = weighted_midranks(v, w)
+    for t in range(v.shape[1]):
+        ok = w[:, t] > 0
+        rep = np.repeat(v[ok, t], w[ok, t])
+        want = stats.rankdata(rep)
+        for i in np.flatnonzero(ok):  # every repeat of value i has the same mid-rank
+            assert got[i, t] == want[np.flatnonzero(rep == v[i, t])[0]]
+    assert np.isnan(got[~np.isfinite(v)]).all()

@@ -275,3 +275,19 @@ def test_edited_controller_code_reruns_that_controllers_runs(tmp_path, reference
         # same code really, so the same rows
         pd.testing.assert_frame_equal(ours.drop(columns="run_inputs", errors="ignore"),
                                       ref.drop(columns="run_inputs", errors="ignore"))
+
+
+@pytest.mark.parametrize("larger", ["paper-large", "paper-xl", "paper-nulls"])
+def test_every_run_of_paper_is_a_run_of_each_larger_built_in_study(larger):
+    """docs/method.md tells a user to grow `make run`'s folder into a larger built-in study
+    (only the new runs simulated): that holds only if the larger study plans every run of
+    `paper`, from the same personas, respondents and seed."""
+    from popnavshift.episodes.specs import all_episodes
+
+    paper, big = load_study("paper"), load_study(larger)
+    assert big.model_dump(exclude={"name", "description", "parts"}) == paper.model_dump(
+        exclude={"name", "description", "parts"})
+    mine = {r.key for r in plan_study(big, all_episodes(0))}
+    assert {r.key for r in plan_study(paper, all_episodes(0))} < mine
+    if larger == "paper-xl":  # grown from paper-large's folder too
+        assert {r.key for r in plan_study(load_study("paper-large"), all_episodes(0))} < mine

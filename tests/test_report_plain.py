@@ -224,7 +224,8 @@ def test_the_paper_study_names_paper_large_for_the_rows_it_decided_and_no_study_
     truth = {("matched", "worst_decile"): (UNDECIDED, CHANGES),
              ("all_pairs", "blocked_pct"): (UNDECIDED, NOT_CHANGED),
              ("all_pairs", "robot_time"): (SMALL, NOT_CHANGED),
-             ("all_pairs", "mean_delay"): (ABOVE, NOT_CHANGED)}
+             ("all_pairs", "mean_delay"): (ABOVE, NOT_CHANGED),
+             ("all_pairs", "cvar90"): (ABOVE, NOT_CHANGED)}
     tables = {"evidence_headline": headline(truth), "evidence_interaction": interaction(truth)}
     answer, _ = answer_sentences(tables, ("paper", 0))
     text = next(a for a in answer if a["lead"].startswith("Undecided"))["text"]
@@ -236,9 +237,12 @@ def test_the_paper_study_names_paper_large_for_the_rows_it_decided_and_no_study_
     nobody = [s for s in said if s.startswith("No built-in study")]
     assert any("blocked" in s.lower() for s in nobody) and not any(
         "worst-decile" in s for s in nobody), said
-    # the pairs' mean delay: no built-in study's exact test decided it, and why
-    mean = next(s for s in nobody if "mean delay" in s)
-    assert "interaction" in mean and "more null replicates" in mean, mean
+    # the pairs' mean delay: decided by the smallest study that did (19 null replicates)
+    mean = next(s for s in said if "mean delay across" in s and "interaction" in s)
+    assert "paper-nulls" in mean and "paper-xl" not in mean, mean
+    # the pairs' CVaR-90: no built-in study's exact test decided it, and why
+    cvar = next(s for s in nobody if "CVaR-90" in s)
+    assert "interaction" in cvar and "null replicates" in cvar, cvar
     # a row measured undecidable says what was measured, not only "no built-in study"
     blocked = next(s for s in nobody if "blocked" in s.lower())
     assert blocked.startswith("No built-in study decides the reversal verdict") and (

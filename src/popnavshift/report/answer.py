@@ -32,6 +32,10 @@ HEADLINE_METRICS: tuple[str, ...] = (*names("burden"), *names("robot"))  # burde
 
 
 def _p(x: Any) -> str:
+    """A p value: three decimals, two significant digits below 0.01 (a randomization p near
+    a level of 0.005 reads 0.0049 or 0.0051, not 0.005 both)."""
+    if x is not None and np.isfinite(x) and abs(x) < 0.01:
+        return np.format_float_positional(x, 2, unique=False, fractional=False, trim="k")
     return fmt(x, "{:.3f}")
 
 
