@@ -101,6 +101,11 @@ def test_the_permutation_test_needs_19_replicates_to_decide():
     assert permutation_test(0.9, np.zeros(19))["verdict"] == ABOVE
     assert permutation_test(0.0, np.zeros(19))["verdict"] == NOT_SHOWN
     assert permutation_p(0.3, np.array([0.1, 0.3, 0.5, 0.2])) == pytest.approx(3 / 5)
+    # a tie in exact arithmetic that summation order put a few ulps below still counts
+    third = sum([1 / 3, 1 / 3, 1 / 3, 0.1]) / 4  # one order of the same four numbers …
+    other = sum([0.1, 1 / 3, 1 / 3, 1 / 3]) / 4  # … and another
+    assert permutation_p(max(third, other), np.array([min(third, other), 0.0])) == 2 / 3
+    assert permutation_p(0.3, np.array([0.3 - 1e-9])) == 1 / 2  # a real difference is not
 
 
 def test_prediction_interval_by_hand():

@@ -204,3 +204,13 @@ def test_the_decided_orderings_sentence_follows_the_permutation_verdicts():
     assert "cannot decide (19 null replicates" in text and "it needs 159" in text
     head["verdict"] = NOT_SHOWN
     assert "shows none above the null" in decided_sentence(head)["text"]
+
+
+def test_a_p_near_the_level_reads_to_two_significant_digits():
+    """A randomization p of 19,999 draws either side of 0.005 must not print as 0.005 both."""
+    from popnavshift.report.answer import _p
+
+    assert [_p(x) for x in (0.0049, 0.005, 0.0051, 0.02, 1.0)] == [
+        "0.0049", "0.0050", "0.0051", "0.020", "1.000"]
+    assert _p(1 / 20000) == "0.000050" and _p(0.0) == "0.000"
+    assert _p(np.nan) == _p(None) == _p(pd.NA) == "–"

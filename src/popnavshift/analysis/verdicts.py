@@ -47,9 +47,17 @@ CLAIMS = (ABOVE, BELOW, SMALL)
 TEST_OF_RULE = {"raw": "prediction t", "sig": "permutation"}
 
 
+#: relative tolerance under which a null statistic counts as equal to the observed: statistics
+#: equal in exact arithmetic (rank means are often) can differ in the last bits with the
+#: order they were summed in, and a tie must count as "at least as large"
+TIE = 1e-12
+
+
 def permutation_p(observed: float, null: np.ndarray) -> float:
-    """(1 + #{null ≥ observed}) / (1 + P): the permutation p-value of P null replicates."""
-    return (1 + int((np.asarray(null) >= observed).sum())) / (1 + len(null))
+    """(1 + #{null ≥ observed}) / (1 + P): the permutation p-value of P null replicates
+    (a null within :data:`TIE` of the observed counts as a tie, so as at least as large)."""
+    level = observed - TIE * max(1.0, abs(observed))
+    return (1 + int((np.asarray(null) >= level).sum())) / (1 + len(null))
 
 
 def min_nulls_permutation(alpha: float = ALPHA) -> int:

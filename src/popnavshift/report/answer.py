@@ -34,9 +34,13 @@ HEADLINE_METRICS: tuple[str, ...] = (*names("burden"), *names("robot"))  # burde
 def _p(x: Any) -> str:
     """A p value: three decimals, two significant digits below 0.01 (a randomization p near
     a level of 0.005 reads 0.0049 or 0.0051, not 0.005 both)."""
-    if x is not None and np.isfinite(x) and abs(x) < 0.01:
-        return np.format_float_positional(x, 2, unique=False, fractional=False, trim="k")
-    return fmt(x, "{:.3f}")
+    if x is None or pd.isna(x):
+        return fmt(None)
+    if 1e-4 <= float(x) < 0.01:
+        return f"{float(x):#.2g}"
+    if 0 < float(x) < 1e-4:  # the smallest a randomization p over 19,999 draws can be
+        return np.format_float_positional(float(x), 2, unique=False, fractional=False)
+    return fmt(float(x), "{:.3f}")
 
 
 def design_text(r: Any) -> str:
