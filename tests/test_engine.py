@@ -277,7 +277,7 @@ def test_edited_controller_code_reruns_that_controllers_runs(tmp_path, reference
                                       ref.drop(columns="run_inputs", errors="ignore"))
 
 
-@pytest.mark.parametrize("larger", ["paper-large", "paper-xl", "paper-nulls"])
+@pytest.mark.parametrize("larger", ["paper-large", "paper-xl", "paper-nulls", "paper-xl-nulls"])
 def test_every_run_of_paper_is_a_run_of_each_larger_built_in_study(larger):
     """docs/method.md tells a user to grow `make run`'s folder into a larger built-in study
     (only the new runs simulated): that holds only if the larger study plans every run of
@@ -289,5 +289,6 @@ def test_every_run_of_paper_is_a_run_of_each_larger_built_in_study(larger):
         exclude={"name", "description", "parts"})
     mine = {r.key for r in plan_study(big, all_episodes(0))}
     assert {r.key for r in plan_study(paper, all_episodes(0))} < mine
-    if larger == "paper-xl":  # grown from paper-large's folder too
-        assert {r.key for r in plan_study(load_study("paper-large"), all_episodes(0))} < mine
+    for smaller in {"paper-xl": ["paper-large"],  # grown from their folders too
+                    "paper-xl-nulls": ["paper-large", "paper-xl"]}.get(larger, []):
+        assert {r.key for r in plan_study(load_study(smaller), all_episodes(0))} < mine

@@ -42,9 +42,9 @@ stdout = Console(soft_wrap=True, highlight=False)
 Out = Annotated[Path, typer.Option("--out", "-o", help="Study folder to write into.")]
 StudyArg = Annotated[
     str | None,
-    typer.Argument(help="A built-in study (paper; paper-large, paper-xl and paper-nulls, which "
-                        "decide more of its headline; quick; pilot) or a study YAML file. "
-                        "Default: paper."),
+    typer.Argument(help="A built-in study (paper; paper-large, paper-nulls, paper-xl and "
+                        "paper-xl-nulls, which decide more of its headline; quick; pilot) or a "
+                        "study YAML file. Default: paper."),
 ]
 Replicates = Annotated[int | None, typer.Option(
     "--replicates", min=1, max=999,
