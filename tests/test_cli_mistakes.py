@@ -271,6 +271,17 @@ def test_report_refuses_a_damaged_table_in_one_line(study, damage):
     assert_one_line_error(run_cli("report", str(study)), "pedestrians.parquet", "damaged")
 
 
+@pytest.mark.parametrize("table", ["runs.parquet", "pedestrians.parquet"])
+def test_report_on_a_folder_without_its_run_tables_is_one_line_before_any_progress(
+        study, table, tmp_path):
+    """Found by the option fuzzer: a report's progress line ("report: reading the study")
+    came before the error when stderr is not a terminal."""
+    folder = tmp_path / "partial"
+    shutil.copytree(study, folder)
+    (folder / table).unlink()
+    assert_one_line_error(run_cli("report", str(folder)), table, "not found")
+
+
 def test_a_corrupt_stages_file_is_one_line(study):
     (study / "stages.json").write_text('{"personas": "abc", ')
     assert_one_line_error(rerun(study), "stages.json", "damaged")

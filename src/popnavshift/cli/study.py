@@ -142,9 +142,13 @@ def report_cmd(
 
 def _write_report(study_dir: Path, n_boot: int = 1000) -> None:
     from ..read.checks import check_study_folder
+    from ..read.folder import open_study
     from ..report.build import build_report
 
     check_study_folder(study_dir)
+    # what would stop the build at its first step, said before any progress line: a user
+    # error is one line
+    open_study(study_dir).require_run_tables()
     started = time.perf_counter()
     with console.status("writing the report…") as status:
         def step(name: str) -> None:

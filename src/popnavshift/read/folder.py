@@ -49,12 +49,19 @@ class StudyFolder:
         self.study: Study | None = stored_study(self.manifest)
         self._tables: dict[str, pd.DataFrame | None] = dict(tables or {})
 
+    def require_run_tables(self) -> None:
+        """InputError when ``runs.parquet`` or ``pedestrians.parquet`` is absent, without
+        reading either (a command checks this before it starts its progress lines)."""
+        for name in ("runs", "pedestrians"):
+            if name not in self._tables and not (self.folder / f"{name}.parquet").exists():
+                raise InputError(f"study folder {self.folder}: {name}.parquet not found",
+                                 hint="run the study first (popnavshift run)")
+
     def _table(self, name: str) -> pd.DataFrame | None:
         if name not in self._tables:
             path = self.folder / f"{name}.parquet"
-            if name in ("runs", "pedestrians") and not path.exists():
-                raise InputError(f"study folder {self.folder}: {name}.parquet not found",
-                                 hint="run the study first (popnavshift run)")
+            if name in ("runs", "pedestrians"):
+                self.require_run_tables()
             if not path.exists():
                 self._tables[name] = None
             elif name == "pedestrians":
