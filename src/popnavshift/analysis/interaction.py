@@ -93,6 +93,12 @@ def interaction_z(o: Orderings, groups: Sequence[Sequence[tuple[str, str]]]) -> 
     return out
 
 
+def _mean(total: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """total / count, NaN where count is 0 (a design with no finite term)."""
+    with np.errstate(all="ignore"):
+        return np.where(count > 0, total / np.where(count > 0, count, 1), np.nan)
+
+
 def _mean_over_terms(scaled: np.ndarray) -> np.ndarray:
     """(K,) the mean of each design's finite scaled ranks (K, Π, T), summed pair by pair
     of the design (the order :meth:`Recombined.statistic` sums in, so both agree bit for
@@ -103,8 +109,7 @@ def _mean_over_terms(scaled: np.ndarray) -> np.ndarray:
     total, count = np.zeros(len(s)), np.zeros(len(s))
     for j in range(s.shape[1]):
         total, count = total + s[:, j], count + n[:, j]
-    with np.errstate(all="ignore"):
-        return np.where(count > 0, total / np.where(count > 0, count, 1), np.nan)
+    return _mean(total, count)
 
 
 def rank_statistic(z: np.ndarray) -> np.ndarray:
@@ -126,8 +131,9 @@ def weighted_midranks(v: np.ndarray, w: np.ndarray) -> np.ndarray:
     repeated ``w`` (K, T) times each (NaN where ``v`` is not finite; ``w`` 0 there): the
     rank the value would have among all the repeats, ties sharing their mean rank."""
     fin = np.isfinite(v)
-    order = np.argsort(np.where(fin, v, np.inf), axis=0, kind="stable")
-    sv = np.take_along_axis(np.where(fin, v, np.inf), order, axis=0)
+    last_if_missing = np.where(fin, v, np.inf)
+    order = np.argsort(last_if_missing, axis=0, kind="stable")
+    sv = np.take_along_axis(last_if_missing, order, axis=0)
     sw = np.take_along_axis(np.where(fin, w, 0), order, axis=0).astype(float)
     above = np.cumsum(sw, axis=0)  # repeats up to and including each sorted value
     k = np.arange(len(v))[:, None]
@@ -240,8 +246,7 @@ class Recombined:
             fin = np.isfinite(scaled)
             total = total + np.where(fin, scaled, 0.0).sum(axis=1)[inv]
             count = count + fin.sum(axis=1)[inv]
-        with np.errstate(all="ignore"):
-            return np.where(count > 0, total / np.where(count > 0, count, 1), np.nan)
+        return _mean(total, count)
 
     def test(self, tested: int, pool: Sequence[int] | np.ndarray, *, draws: int,
              seed: Sequence[int]
