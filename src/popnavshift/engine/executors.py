@@ -25,11 +25,18 @@ from .worker import Context, init_worker, run_batch
 Result = tuple[str, object, object, int]
 
 
-def run_local(batches: Sequence[Batch], context: Context, workers: int) -> Iterator[Result]:
-    """Worker processes (spawned, so nothing of the parent's state leaks in)."""
+def run_local(batches: Sequence[Batch], context: Context, workers: int,
+              task: Callable[..., Result] = run_batch) -> Iterator[Result]:
+    """Worker processes (spawned, so nothing of the parent's state leaks in) running
+    ``task`` on each batch (with ``context`` in one process, the worker's otherwise).
+
+    Interrupted (Ctrl-C, an error, the consumer gone), the batches in flight are
+    abandoned at once: their workers are terminated rather than waited for. Workers only
+    compute, the parent stores each finished batch, so nothing of a stored batch is lost
+    and a resumed run simulates the abandoned ones again."""
     if workers <= 1:
         for b in batches:
-            yield run_batch(b, context)
+            yield task(b, context)
         return
     ctx = mp.get_context("spawn")
     with ProcessPoolExecutor(
@@ -43,17 +50,26 @@ def run_local(batches: Sequence[Batch], context: Context, workers: int) -> Itera
                     nxt = next(todo, None)
                     if nxt is None:
                         break
-                    pending.add(pool.submit(run_batch, nxt))
+                    pending.add(pool.submit(task, nxt))
                 if not pending:
                     return
                 done, pending = wait(pending, return_when=FIRST_COMPLETED)
                 for fut in done:
                     yield fut.result()
         except BaseException:
-            for fut in pending:
-                fut.cancel()
-            pool.shutdown(wait=False, cancel_futures=True)
+            _abandon(pool)
             raise
+
+
+def _abandon(pool: ProcessPoolExecutor) -> None:
+    """Shut ``pool`` down without waiting: queued batches cancelled, running ones'
+    workers terminated (the pool's own exit would wait for each to finish)."""
+    workers = list((getattr(pool, "_processes", None) or {}).values())  # no public handle
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in workers:
+        proc.terminate()
+    for proc in workers:
+        proc.join(timeout=5)
 
 
 def run_ray(
