@@ -67,7 +67,7 @@ def test_the_clause_names_the_study_its_cost_and_whose_seed_it_was_measured_on()
 def test_a_recorded_calibration_is_a_count_with_its_clopper_pearson_interval():
     from scipy import stats
 
-    from popnavshift.report.larger import measured_calibration
+    from popnavshift.report.larger import measured_calibration, measured_claims
 
     measured = measured_calibration("paper")
     assert measured
@@ -77,3 +77,10 @@ def test_a_recorded_calibration_is_a_count_with_its_clopper_pearson_interval():
             assert n == m.replicates * 5 and abs(at["rate"] - k / n) < 5e-4
             assert abs(at["cp_low"] - stats.beta.ppf(0.025, k, n - k + 1)) < 5e-4
             assert abs(at["cp_high"] - stats.beta.ppf(0.975, k + 1, n - k)) < 5e-4
+    claims = measured_claims("paper")
+    assert claims
+    for c in claims:
+        k, n = c.measured["claims"], c.measured["placebos"]
+        assert n == c.replicates * 5 and abs(c.measured["rate"] - k / n) < 5e-4
+        assert abs(c.measured["cp_low"] - stats.beta.ppf(0.025, k, n - k + 1)) < 5e-4
+        assert abs(c.measured["cp_high"] - stats.beta.ppf(0.975, k + 1, n - k)) < 5e-4

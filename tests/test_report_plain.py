@@ -288,7 +288,7 @@ def test_a_test_measured_above_nominal_at_this_design_qualifies_its_claims_here(
     # 7.5 % of 375 placebos at 5 % (what it did on the paper study before the pairs' test
     # became the randomization test over recombined designs)
     from popnavshift.analysis.interaction import PREDICTION, RECOMBINED
-    from popnavshift.report import plain
+    from popnavshift.report import plain_measured
     from popnavshift.report.larger import Measured
 
     def record(reference: str, at_05: tuple[int, float]) -> Measured:
@@ -299,7 +299,8 @@ def test_a_test_measured_above_nominal_at_this_design_qualifies_its_claims_here(
                          "cp_high": 0.0308})
 
     records = {"paper": [record(PREDICTION, (28, 0.0501))]}
-    monkeypatch.setattr(plain, "measured_calibration", lambda s: records.get(s, []))
+    monkeypatch.setattr(plain_measured, "measured_calibration", lambda s: records.get(s, []))
+    monkeypatch.setattr(plain_measured, "measured_claims", lambda s: [])
     truth = {("matched", "robot_time"): (SMALL, CHANGES),
              ("all_pairs", "robot_time"): (SMALL, CHANGES),
              ("all_pairs", "mean_delay"): (ABOVE, NOT_CHANGED)}
@@ -323,6 +324,36 @@ def test_a_test_measured_above_nominal_at_this_design_qualifies_its_claims_here(
     assert said(("paper", 0), calm) == ""  # no claim across the pairs to qualify
     records["paper"] = [record(PREDICTION, (20, 0.034))]
     assert said(("paper", 0)) == ""  # measured, and not above nominal: nothing to qualify
+
+
+def test_a_reversal_claim_measured_above_nominal_qualifies_its_verdicts_here(monkeypatch):
+    # the record as measured: across the pairs at 3 variants per cell the raw rule claimed
+    # 'above the null' on 36 of 1,000 placebos at a nominal 2.5 % (docs/analysis.md §7)
+    from popnavshift.report import plain_measured
+    from popnavshift.report.larger import measured_claims
+
+    monkeypatch.setattr(plain_measured, "measured_calibration", lambda s: [])
+    truth = {("matched", "mean_delay"): (ABOVE, CHANGES),
+             ("all_pairs", "robot_time"): (SMALL, NOT_CHANGED),
+             ("all_pairs", "mean_delay"): (ABOVE, NOT_CHANGED)}
+    inter = interaction(truth).assign(variants_per_cell=[12, 3, 3])
+
+    def said(study, truth=truth, inter=inter) -> str:
+        answer, _ = answer_sentences({"evidence_headline": headline(truth),
+                                      "evidence_interaction": inter}, study)
+        return " ".join(a["lead"] + " " + a["text"] for a in answer
+                        if "more often than nominal" in a["lead"])
+
+    assert measured_claims("paper"), "the record holds the measured reversal claim"
+    text = said(("paper", 0))
+    assert "the reversal rule across the population pairs claimed 'above the null' on 36 of " \
+           "1,000 placebos (3.6% [2.5, 4.9]) at a nominal 2.5%" in text, text
+    assert "verdicts here (mean delay) with a false-positive rate above nominal" in text
+    assert said(("paper", 7)) == text  # the design, not the seed
+    assert said(("quick", 0)) == ""  # nothing measured for that study
+    assert said(("paper", 0), inter=inter.assign(variants_per_cell=6)) == ""  # another design
+    calm = {**truth, ("all_pairs", "mean_delay"): (UNDECIDED, NOT_CHANGED)}
+    assert said(("paper", 0), truth=calm) == ""  # no 'above' across the pairs to qualify
 
 
 SPAN = {"a": (1, 1, 1), "b": (2, 2, 3), "c": (3, 2, 3)}

@@ -64,6 +64,23 @@ class Measured:
     at_level: dict
 
 
+@dataclass(frozen=True)
+class MeasuredClaim:
+    """A reversal verdict's claim (``claim``: :data:`..analysis.verdicts.ABOVE`) as the raw
+    rule makes it at its ``nominal`` one-sided level, measured on ``replicates`` null
+    replicates of a study's design (seed ``seed``) for one comparison at
+    ``variants_per_cell``: ``measured`` holds the claims, placebos, rate and
+    Clopper–Pearson interval."""
+
+    comparison: str
+    claim: str
+    nominal: float
+    seed: int
+    replicates: int
+    variants_per_cell: int
+    measured: dict
+
+
 def _record(study: str) -> dict:
     text = resources.files("popnavshift").joinpath("data/larger_studies.json").read_text("utf-8")
     rec = json.loads(text).get(study)
@@ -135,3 +152,11 @@ def measured_calibration(study: str) -> list[Measured]:
                      int(c["replicates"]),
                      int(c["variants_per_cell"]), c["at_05"], c["at_level"])
             for c in _record(study).get("calibration", [])]
+
+
+def measured_claims(study: str) -> list[MeasuredClaim]:
+    """The reversal claims whose raw rate was measured on many null replicates of
+    ``study``'s design (the record's ``calibration_reversal``)."""
+    return [MeasuredClaim(c["comparison"], c["claim"], float(c["nominal"]), int(c["seed"]),
+                          int(c["replicates"]), int(c["variants_per_cell"]), c["measured"])
+            for c in _record(study).get("calibration_reversal", [])]

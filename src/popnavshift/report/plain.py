@@ -26,20 +26,20 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..analysis.interaction import CHANGES, NO_TERMS, PREDICTION
+from ..analysis.interaction import CHANGES, NO_TERMS
 from ..analysis.interaction import NOT_SHOWN as NOT_CHANGED
 from ..analysis.power import POWER
 from ..analysis.reversals import COMPARISONS
-from ..analysis.verdicts import ABOVE, ALPHA, BELOW, MIN_NULLS_T, SMALL, UNDECIDED
+from ..analysis.verdicts import ABOVE, BELOW, MIN_NULLS_T, SMALL, UNDECIDED
 from .larger import (
     larger_clause,
     larger_studies,
-    measured_calibration,
     measured_here,
     row_keys,
     split_undecided,
     unresolved,
 )
+from .plain_measured import measured_rate_sentence
 from .plain_order import order_sentence
 from .plain_support import calibration_sentence, crossover_sentence, decided_sentence
 from .plain_words import (
@@ -319,46 +319,6 @@ def undecided_sentence(rows: pd.DataFrame, power: pd.DataFrame | None,
     extra = larger_study_sentence(frame, study)
     return {"lead": "Undecided rows and what would decide them.",
             "text": " ".join(parts + ([extra] if extra else []))}
-
-
-def _count(at: dict) -> str:
-    """``28 of 375 placebos (7.5% [5.0, 10.6])``."""
-    return (f"{at['claims']} of {at['placebos']} placebos ({100 * at['rate']:.1f}% "
-            f"[{100 * at['cp_low']:.1f}, {100 * at['cp_high']:.1f}])")
-
-
-def measured_rate_sentence(rows: pd.DataFrame, inter: pd.DataFrame | None,
-                           study: tuple[str, int | None] | None) -> dict[str, str] | None:
-    """Where the interaction test's false-positive rate was measured above nominal on many
-    null replicates of this very design (:func:`.larger.measured_calibration`: the same test,
-    the same variants per cell; the design is the same whatever the seed), the claims it
-    made here are said to hold at that rate."""
-    if study is None or inter is None or inter.empty or "variants_per_cell" not in inter:
-        return None
-    said = []
-    for m in measured_calibration(study[0]):
-        own = inter[inter["comparison"] == m.comparison]
-        claims = rows[(rows["comparison"] == m.comparison) & (rows["inter"] == CHANGES)]
-        level = float(own["alpha_row"].max()) if "alpha_row" in own else np.nan
-        above = m.at_05["cp_low"] > ALPHA or m.at_level["cp_low"] > level
-        if m.test != "interaction" or own.empty or claims.empty or not above or int(
-                own["variants_per_cell"].iloc[0]) != m.variants_per_cell or \
-                own.get("reference", pd.Series([PREDICTION])).iloc[0] != m.reference:
-            continue
-        said.append(
-            f"On {m.replicates} null replicates of this design ({m.variants_per_cell} variants "
-            f"per cell; seed {m.seed}) each taken as the observed, the interaction test "
-            f"{phrase(m.comparison)} claimed a change on {_count(m.at_05)} at 5% and on "
-            f"{_count(m.at_level)} at the headline's level"
-            + (f" ({level:.3g})" if np.isfinite(level) else "")
-            + f": read its claims here ({join([label(x) for x in by_metric(claims)['metric']])})"
-            " at that rate, not the nominal one (the placebos share replicates, so the "
-            "intervals are narrower than independent draws would give; with more variants "
-            "per cell, as in the larger built-in studies, the rate is not measured).")
-    if not said:
-        return None
-    return {"lead": "One test claims more often than nominal at this design.",
-            "text": " ".join(said)}
 
 
 def _populations(ranks: pd.DataFrame | None) -> list[str]:
