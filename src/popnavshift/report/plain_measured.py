@@ -12,7 +12,7 @@ import pandas as pd
 
 from ..analysis.interaction import CHANGES, PREDICTION
 from ..analysis.verdicts import ALPHA
-from .larger import measured_calibration, measured_claims
+from .larger import Measured, MeasuredClaim, measured_calibration, measured_claims
 from .plain_words import by_metric, join, label, phrase
 
 SHARED = ("the placebos share replicates, so the intervals are narrower than independent "
@@ -23,6 +23,13 @@ def _count(at: dict) -> str:
     """``28 of 375 placebos (7.5% [5.0, 10.6])``."""
     return (f"{at['claims']:,} of {at['placebos']:,} placebos ({100 * at['rate']:.1f}% "
             f"[{100 * at['cp_low']:.1f}, {100 * at['cp_high']:.1f}])")
+
+
+def _on_design(m: Measured | MeasuredClaim) -> str:
+    """``On 200 null replicates of this design (3 variants per cell; seed 0) each taken as
+    the observed, the``"""
+    return (f"On {m.replicates} null replicates of this design ({m.variants_per_cell} "
+            f"variants per cell; seed {m.seed}) each taken as the observed, the")
 
 
 def _variants(inter: pd.DataFrame, comparison: str) -> int | None:
@@ -42,9 +49,8 @@ def _interaction(rows: pd.DataFrame, inter: pd.DataFrame, study: str) -> list[st
                 own.get("reference", pd.Series([PREDICTION])).iloc[0] != m.reference:
             continue
         said.append(
-            f"On {m.replicates} null replicates of this design ({m.variants_per_cell} variants "
-            f"per cell; seed {m.seed}) each taken as the observed, the interaction test "
-            f"{phrase(m.comparison)} claimed a change on {_count(m.at_05)} at 5% and on "
+            f"{_on_design(m)} interaction test {phrase(m.comparison)} claimed a change on "
+            f"{_count(m.at_05)} at 5% and on "
             f"{_count(m.at_level)} at the headline's level"
             + (f" ({level:.3g})" if np.isfinite(level) else "")
             + f": read its claims here ({join([label(x) for x in by_metric(claims)['metric']])})"
@@ -61,9 +67,8 @@ def _reversal(rows: pd.DataFrame, inter: pd.DataFrame, study: str) -> list[str]:
                 _variants(inter, m.comparison) != m.variants_per_cell:
             continue
         said.append(
-            f"On {m.replicates} null replicates of this design ({m.variants_per_cell} variants "
-            f"per cell; seed {m.seed}) each taken as the observed, the reversal rule "
-            f"{phrase(m.comparison)} claimed '{m.claim}' on {_count(m.measured)} at a nominal "
+            f"{_on_design(m)} reversal rule {phrase(m.comparison)} claimed '{m.claim}' on "
+            f"{_count(m.measured)} at a nominal "
             f"{100 * m.nominal:.1f}% (one-sided, before the table's adjustment): read its "
             f"'{m.claim}' verdicts here "
             f"({join([label(x) for x in by_metric(claims)['metric']])}) with a false-positive "
