@@ -354,6 +354,17 @@ def test_a_reversal_claim_measured_above_nominal_qualifies_its_verdicts_here(mon
     assert said(("paper", 0), inter=inter.assign(variants_per_cell=6)) == ""  # another design
     calm = {**truth, ("all_pairs", "mean_delay"): (UNDECIDED, NOT_CHANGED)}
     assert said(("paper", 0), truth=calm) == ""  # no 'above' across the pairs to qualify
+    # decided by another test (the randomization test over recombined designs): the
+    # rate measured for the prediction t says nothing of it
+    from popnavshift.analysis.recombine import RECOMBINED
+
+    def said_by(test: str) -> str:
+        answer, _ = answer_sentences({"evidence_headline": headline(truth).assign(test=test),
+                                      "evidence_interaction": inter}, ("paper", 0))
+        return " ".join(a["text"] for a in answer if "more often than nominal" in a["lead"])
+
+    assert said_by(RECOMBINED) == ""
+    assert said_by("prediction t") != "" and said_by("prediction t") in text
 
 
 SPAN = {"a": (1, 1, 1), "b": (2, 2, 3), "c": (3, 2, 3)}

@@ -59,6 +59,7 @@ import numpy as np
 import pandas as pd
 
 from ..populations.identity import NULL_KINDS
+from .recombine import RECOMBINED, placebo_ps, recombined_verdict
 from .verdicts import (
     ABOVE,
     ALPHA,
@@ -149,6 +150,9 @@ def placebos(null_rates: pd.DataFrame, null_sizes: Mapping[str, int] | None = No
     rows = []
     for (comp, metric, rule), g in null_rates.groupby(["comparison", "metric", "rule"],
                                                       sort=False):
+        if recombined(g):
+            rows += _recombined_placebos(g, comp, metric)
+            continue
         rates = g["rate"].to_numpy(float)
         size = (null_sizes or {}).get(comp)
         for check in CHECKS:
@@ -166,6 +170,28 @@ def placebos(null_rates: pd.DataFrame, null_sizes: Mapping[str, int] | None = No
                              "replicate": int(g["replicate"].iloc[j]),
                              "claim_made": bool(check.made(d))})
     return pd.DataFrame(rows)
+
+
+def recombined(g: pd.DataFrame) -> bool:
+    """Whether the null replicates ``g`` (one comparison, metric and rule) carry their
+    placebos' randomization p-values (the raw rule against recombined designs)."""
+    return "placebo_p_above" in g and bool(g["placebo_p_above"].notna().any())
+
+
+def _recombined_placebos(g: pd.DataFrame, comp: str, metric: str) -> list[dict]:
+    """The raw rule's checks (:data:`CHECKS`) on placebos decided against recombined
+    designs: each claim from the placebo's one-sided p-values at α/2 (the test's own
+    decision, :func:`.recombine.recombined_verdict`)."""
+    rows = []
+    for check in CHECKS:
+        if check.rule != "raw":
+            continue
+        for r in g[g["placebo_p_above"].notna()].to_dict("records"):
+            d = {"verdict": recombined_verdict(*placebo_ps(r, check.shift), ALPHA / 2)}
+            rows.append({"comparison": comp, "metric": metric, "test": RECOMBINED,
+                         "rule": "raw", "claim": check.claim,
+                         "replicate": int(r["replicate"]), "claim_made": bool(check.made(d))})
+    return rows
 
 
 def _floor_of(g: pd.DataFrame, rows: np.ndarray) -> float:
@@ -198,6 +224,12 @@ def family_placebos(null_rates: pd.DataFrame, family: int, *, alpha: float = ALP
             keep = [common[i] for i in placebo_nulls(len(common), pos,
                                                      (null_sizes or {}).get(key[0]))]
             rest = g.loc[keep].to_numpy(float)
+            if recombined(tables[key]):  # its placebo's own randomization p-values
+                ps = tables[key].loc[j]
+                a = alpha / (2 * family)
+                effect |= recombined_verdict(*placebo_ps(ps, 0.0), a) in (ABOVE, BELOW)
+                small |= recombined_verdict(*placebo_ps(ps, MIN_EFFECT), a) == SMALL
+                continue
             if len(rest) < MIN_NULLS_T or not np.isfinite(g[j]):
                 continue
             others = tables[key].loc[keep]
@@ -261,8 +293,14 @@ def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame
                                claim="an effect (excludes 0)",
                                claim_made=e["episode_excludes_zero"].astype(bool)))
     allp = pd.concat(frames, ignore_index=True)
-    order = {(c.test.name, c.claim): i for i, c in enumerate(CHECKS)}
+    # the raw rule against recombined designs makes the prediction t's claims
+    order: dict[tuple[str, str], float] = {(c.test.name, c.claim): i
+                                           for i, c in enumerate(CHECKS)}
+    order.update({(RECOMBINED, c.claim): i + 0.5 for i, c in enumerate(CHECKS)
+                  if c.test is PREDICTION_T})
     kinds = {(c.test.name, c.claim): (c.kind, c.nominal) for c in CHECKS}
+    kinds.update({(RECOMBINED, c.claim): (c.kind, c.nominal) for c in CHECKS
+                  if c.test is PREDICTION_T})
     rows = []
     for comp in [*sorted(allp["comparison"].unique()), "all"]:
         sub = (allp[allp["comparison"] != "table"] if comp == "all"
@@ -284,7 +322,8 @@ def calibration_table(null_rates: pd.DataFrame, placebo_crossovers: pd.DataFrame
                          "within": (low <= nominal) if kind == "false positive" else np.nan,
                          "status": status(low, high, nominal) if kind == "false positive"
                          else kind,
-                         "_order": (order.get((test, claim), 90) if test in TESTS else
+                         "_order": (order.get((test, claim), 90)
+                                    if test in TESTS or test == RECOMBINED else
                                     -1 if test == "headline table" else
                                     98 if test.startswith("episode") else
                                     96 if test.startswith("interaction") else 95)})

@@ -63,6 +63,9 @@ class Tested:
     #: raw reversal counts of every observed pair of a comparison of several pairs, observed
     #: and in every null replicate (:func:`.pair_excess.pair_counts`)
     pair_counts: pd.DataFrame = field(default_factory=pd.DataFrame)
+    #: (comparison, metric, rule) → the rates of the designs recombined from the observed
+    #: and its replicates, where the raw rule is decided against them (:mod:`.recombine`)
+    references: dict[tuple[str, str, str], np.ndarray] = field(default_factory=dict)
 
 
 def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
@@ -89,7 +92,8 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
       controller: count only the orderings of this controller against the others (a
         card: never the others' among themselves), pooled and, in ``pair_headline`` and
         ``pair_null_rates``, pair by pair.
-      null_sizes: per design label, the replicates each interaction placebo is judged
+      null_sizes: per design label, the replicates each placebo of a test that computes
+        its own (the interaction test; the raw rule against recombined designs) is judged
         against (the study's own design on more placebos; default all others).
       interaction: run the interaction test (:mod:`.interaction`), with ``rates_only`` too
         (a card's second question); False leaves ``interaction`` empty.
@@ -99,6 +103,7 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
     design = build_design(runs, paired)
     weights = episode_weights(design, n_boot, rng)
     boot_excess: dict[tuple[str, str, str], np.ndarray] = {}
+    references: dict[tuple[str, str, str], np.ndarray] = {}
     frames: dict[str, list[pd.DataFrame]] = {k: [] for k in ("head", "null", "cross", "ord",
                                                            "rank", "placebo", "pair_head",
                                                            "pair_null", "inter",
@@ -110,9 +115,15 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
             o = o.involving(controller)
         for label, d in designs.items():
             obs_pairs, null_pairs = d.observed, d.nulls
-            rows, reps = null_test(o, obs_pairs, null_pairs, ci_level=ci_level)
+            # the raw rule against recombined designs where the null has several units
+            # (the headline; a card keeps the prediction t: docs/analysis.md §10)
+            rows, reps = null_test(o, obs_pairs, null_pairs, ci_level=ci_level,
+                                   units=d.units if controller is None else (),
+                                   null_size=(null_sizes or {}).get(label))
             for row in rows:
                 boot_excess[(label, metric, row["rule"])] = row.pop("boot_excess")
+                if "reference" in row:
+                    references[(label, metric, row["rule"])] = row.pop("reference")
             frames["head"].append(pd.DataFrame(rows).assign(comparison=label))
             frames["null"].append(reps.assign(comparison=label))
             for other in _others(o, controller):
@@ -148,7 +159,7 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
     cat = {k: pd.concat(v, ignore_index=True) if v else pd.DataFrame() for k, v in frames.items()}
     return Tested(cat["head"], cat["null"], cat["cross"], cat["ord"], cat["rank"],
                   cat["placebo"], n_boot, level, boot_excess, cat["pair_head"], cat["pair_null"],
-                  cat["inter"], cat["inter_null"], cat["pairs"])
+                  cat["inter"], cat["inter_null"], cat["pairs"], references)
 
 
 def _others(o: Orderings, controller: str | None) -> list[str]:

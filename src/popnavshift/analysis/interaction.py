@@ -46,6 +46,7 @@ import pandas as pd
 from scipy import stats
 
 from .calibrate import placebo_nulls
+from .recombine import DRAWS, RECOMBINED, Recombination
 from .significance import Orderings
 from .verdicts import ALPHA, DESCRIPTIVE, MIN_NULLS_T, permutation_p
 
@@ -168,47 +169,30 @@ def one_sided(t0: float, null: np.ndarray) -> dict:
     return {**out, "t": float(t), "p_t": float(stats.t.sf(t, p - 1))}
 
 
-#: recombined designs each randomization test draws: its p is at least 1/(DRAWS + 1), and
-#: its Monte-Carlo SD at p = 0.005 is 0.0005 (a tenth of the headline's level; 999 draws
-#: left 0.002, enough for a seeded p near the level to read otherwise under another seed)
-DRAWS = 19_999
-#: how a row's p was computed: against recombined designs, or by the prediction t
-RECOMBINED = "recombined designs"
+#: how a row's p was computed without recombined designs
 PREDICTION = "prediction t"
 
 
 class Recombined:
-    """The randomization reference of a comparison whose null designs are made of several
-    independently drawn units (:class:`.nulls.Design` ``units``: a size-matched subset per
-    population, a swap permutation of the matched pair).
-
-    A design is recombined by taking each unit's populations from one index of a pool —
-    the tested design and its null replicates — drawn uniformly and independently per
-    unit. Under the null every unit's draws are exchangeable across the pool, so the tested
-    design is exchangeable with its recombinations (the per-unit relabelling group: Hemerik
-    & Goeman 2018, exact with the tested design among R random elements):
-    p = (1 + #{T_r ≥ T₀}) / (1 + R) is exact, whatever the shape of T's distribution —
-    which is why it replaces the prediction t here (its placebo rate was above nominal
-    across the population pairs). z of a population pair is computed once and reused by
-    every design and placebo that draws it."""
+    """The randomization reference of the interaction test of a comparison whose null
+    designs are made of several independently drawn units (:mod:`.recombine`: exact
+    whatever the shape of T's distribution — which is why it replaces the prediction t
+    here, its placebo rate having been above nominal across the population pairs). z of a
+    population pair is computed once and reused by every design and placebo that draws
+    it."""
 
     def __init__(self, o: Orderings, groups: Sequence[Sequence[tuple[str, str]]],
                  units: Sequence[int]) -> None:
         self.o = o
-        self.pa = np.array([[o.index(a) for a, _ in g] for g in groups])  # (K, Π)
-        self.pb = np.array([[o.index(b) for _, b in g] for g in groups])
-        u = np.asarray(units, int)
-        self.u0, self.u1 = u[0::2], u[1::2]
-        self.n_units = int(u.max()) + 1
+        self.rec = Recombination(o.populations, groups, units)
         self.infl = _inflation(o)
         self.cache: dict[int, np.ndarray] = {}
 
     def _keys(self, designs: np.ndarray) -> np.ndarray:
         """(R, Π) the population pair (a · n + b) each design draws for each pair, with
         its z computed (once) into the cache."""
-        pi = np.arange(self.pa.shape[1])
-        n = len(self.o.populations)
-        keys = self.pa[designs[:, self.u0], pi] * n + self.pb[designs[:, self.u1], pi]
+        n = self.rec.n_populations
+        keys = self.rec.keys(designs)
         new = np.array([k for k in np.unique(keys).tolist() if k not in self.cache], int)
         chunks = [new[i:i + 64] for i in range(0, len(new), 64)]
         if not chunks:
@@ -255,10 +239,7 @@ class Recombined:
         (design indices), and the test's fields (:func:`one_sided`'s, ``t`` the
         standardized excess over the recombined designs, ``p_t`` = ``p_value`` the
         randomization p)."""
-        idx = np.array([tested, *pool])
-        rng = np.random.default_rng(list(seed))
-        picks = rng.integers(len(idx), size=(draws, self.n_units))
-        T = self.statistic(idx[np.vstack([np.zeros((1, self.n_units), int), picks])])
+        T = self.statistic(self.rec.draws(tested, pool, draws=draws, seed=seed))
         ref = T[1:][np.isfinite(T[1:])]
         t0, sd = float(T[0]), float(ref.std(ddof=1)) if ref.size > 1 else np.nan
         p = permutation_p(t0, ref) if ref.size and np.isfinite(t0) else np.nan
@@ -288,7 +269,7 @@ def interaction_test(o: Orderings, observed: Sequence[tuple[str, str]],
         else None
     # the designs' own z: from the recombinations' cache when there is one (computed once)
     z = interaction_z(o, groups) if rec is None else \
-        rec.z(np.repeat(np.arange(len(groups))[:, None], rec.n_units, axis=1))
+        rec.z(rec.rec.own(np.arange(len(groups))))
     T = rank_statistic(z)
     terms = int(np.isfinite(z[0]).sum())
     seed = list(o.metric.encode())

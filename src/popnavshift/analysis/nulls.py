@@ -24,7 +24,7 @@ Pure functions; definitions in ``docs/analysis.md`` §7 and §10.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -32,6 +32,16 @@ import pandas as pd
 from scipy import stats
 
 from ..populations.identity import MATCHED_PAIR, NULL_KINDS, NullKind, PopulationSpec
+from .calibrate import placebo_nulls
+from .recombine import (
+    DRAWS,
+    PLACEBO_PS,
+    RECOMBINED,
+    RecombinedRates,
+    recombined_decide,
+    recombined_verdict,
+    tail_ps,
+)
 from .reversals import population_pairs
 from .significance import Orderings, PairCounts, pair_counts
 from .verdicts import binomial_floor, decide
@@ -42,7 +52,9 @@ CI_LEVEL = 0.95  # coverage of the excess interval
 
 def null_test(o: Orderings, observed: Sequence[tuple[str, str]],
               nulls: Sequence[Sequence[tuple[str, str]]], *,
-              ci_level: float = CI_LEVEL) -> tuple[list[dict], pd.DataFrame]:
+              ci_level: float = CI_LEVEL, units: Sequence[int] = (),
+              null_size: int | None = None, draws: int = DRAWS
+              ) -> tuple[list[dict], pd.DataFrame]:
     """Observed vs null rates of one metric, for both rules.
 
     ``observed`` is a list of population pairs; ``nulls`` one list of pairs per null
@@ -50,15 +62,52 @@ def null_test(o: Orderings, observed: Sequence[tuple[str, str]],
     ``null_mean``, ``null_sd``, ``null_min``, ``null_max``, the verdict and its test
     (:func:`.verdicts.decide`), the episode-only interval ``episode_ci_low/high`` and its
     resamples ``boot_excess`` — and the replicates' table (:func:`replicate_table`).
+
+    With ``units`` of two or more units (:class:`Design`) the raw rule is decided by the
+    exact randomization test over ``draws`` designs recombined unit by unit
+    (:func:`.recombine.recombined_decide`; the dict's ``reference`` holds the recombined
+    rates, which :func:`family_verdicts` decides at the table's level), and every
+    replicate's raw row gets its placebo's randomization p-values (:data:`PLACEBO_PS`),
+    judged against the ``null_size`` replicates after it (default all others,
+    :func:`.calibrate.placebo_nulls`).
     """
     obs = pair_counts(o, observed)
     reps = [pair_counts(o, pairs) for pairs in nulls]
     n = episodes_per_cell(o)
+    rec = (RecombinedRates(o, [list(observed), *map(list, nulls)], units)
+           if len(set(units)) > 1 and draws > 0 and nulls else None)
+    seed = list(o.metric.encode())
     out = []
     for rule in RULES:
         row, boot = excess_over(obs, reps, rule, ci_level=ci_level, n_episodes=n)
+        if rule == "raw" and rec is not None:
+            pool = range(1, 1 + min(null_size or len(nulls), len(nulls)))
+            rate, ref = rec.reference(0, pool, draws=draws, seed=[0, 1, *seed])
+            row.update(recombined_decide(rate, ref, null_mean=row["null_mean"],
+                                         alpha=1 - ci_level), reference=ref)
         out.append({"metric": o.metric, "rule": rule, **row, "boot_excess": boot})
-    return out, replicate_table(o.metric, reps, ci_level=ci_level, n_episodes=n)
+    table = replicate_table(o.metric, reps, ci_level=ci_level, n_episodes=n)
+    if rec is not None:
+        table = _with_placebo_ps(table, rec, len(nulls), null_size, draws, seed)
+    return out, table
+
+
+def _with_placebo_ps(table: pd.DataFrame, rec: RecombinedRates, n_nulls: int,
+                     null_size: int | None, draws: int, seed: list[int]) -> pd.DataFrame:
+    """``table`` with, on each replicate's raw row, its placebo's :data:`PLACEBO_PS`: the
+    replicate as the tested design against designs recombined from it and the replicates
+    it is judged against (:func:`.calibrate.placebo_nulls`)."""
+    ps = np.full((n_nulls, len(PLACEBO_PS)), np.nan)
+    for j in range(n_nulls):
+        rest = placebo_nulls(n_nulls, j, null_size)
+        rate, ref = rec.reference(j + 1, rest + 1, draws=draws, seed=[j + 1, 1, *seed])
+        ps[j] = [tail_ps(rate, ref, shift)[side] for side, shift in PLACEBO_PS.values()]
+    raw = (table["rule"] == "raw").to_numpy()
+    out = table.copy()
+    for i, col in enumerate(PLACEBO_PS):
+        out[col] = np.nan
+        out.loc[raw, col] = ps[table.loc[raw, "replicate"].to_numpy() - 1, i]
+    return out
 
 
 def episodes_per_cell(o: Orderings) -> float:
@@ -183,13 +232,18 @@ def burden_beyond_time(headline: pd.DataFrame, null_rates: pd.DataFrame,
 
 
 def family_verdicts(headline: pd.DataFrame, null_rates: pd.DataFrame, *,
-                    alpha: float = 1 - CI_LEVEL) -> pd.DataFrame:
+                    alpha: float = 1 - CI_LEVEL,
+                    references: Mapping[tuple[str, str, str], np.ndarray] | None = None
+                    ) -> pd.DataFrame:
     """The headline's verdicts with multiplicity control over its table: per rule, every row
     with null replicates is one test of a family of m, decided at ``alpha``/m (Bonferroni),
     so its interval is a simultaneous 1 − ``alpha`` interval and every claim of the table —
     above, below, no excess ≥ 5 pp — holds together with probability ≥ 1 − ``alpha``.
     Adds ``family`` (m), ``level`` (each interval's coverage) and ``p_adj`` (m·p, capped at
-    1, of the rule's test); the per-test p-values are kept."""
+    1, of the rule's test); the per-test p-values are kept. A row decided against
+    recombined designs (:data:`.recombine.RECOMBINED`) is decided from its one-sided
+    p-values, its interval from its recombined rates in ``references`` (by (comparison,
+    metric, rule); NaN without them)."""
     out = headline.reset_index(drop=True).copy()
     key = ["comparison", "metric", "rule"]
     groups = dict(list(null_rates.groupby(key, sort=False)))
@@ -201,8 +255,16 @@ def family_verdicts(headline: pd.DataFrame, null_rates: pd.DataFrame, *,
         m = max(len(tested), 1)
         for i, r in tested.iterrows():
             k = (r["comparison"], r["metric"], rule)
-            d = decide(float(r["observed"]), rates[k], rule, floor=floors[k],
-                       alpha=alpha / m)
+            if r.get("test") == RECOMBINED:
+                ref = (references or {}).get(k)
+                d = (recombined_decide(float(r["observed"]), ref, null_mean=r["null_mean"],
+                                       alpha=alpha / m) if ref is not None else
+                     {"ci_low": np.nan, "ci_high": np.nan,
+                      "verdict": recombined_verdict(r["p_above"], r["p_below"], r["p_small"],
+                                                    alpha / (2 * m))})
+            else:
+                d = decide(float(r["observed"]), rates[k], rule, floor=floors[k],
+                           alpha=alpha / m)
             for col in ("ci_low", "ci_high", "verdict"):
                 out.at[i, col] = d[col]
         p = tested["p_t"] if rule == "raw" else tested["p_value"]

@@ -93,6 +93,7 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
     frames: dict[str, list[pd.DataFrame]] = {}
     missing: dict[str, str] = {}
     boot_excess: dict[tuple[str, str, str], np.ndarray] = {}
+    references: dict[tuple[str, str, str], np.ndarray] = {}
     costs: dict[str, Costs] = {}
     for i, (label, design) in enumerate(designs.items()):
         pops = design_populations(design)
@@ -120,6 +121,7 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
         add.update(_replicates(r, p, one, obs_pops, tested.headline, label=label, seed=seed,
                                rng_seed=rng_seed, level=level, missing=missing))
         boot_excess.update(tested.boot_excess)
+        references.update(tested.references)
         if not tested.pair_counts.empty:
             pops_table = study.populations
             add.update(pair_tables(tested.pair_counts, None if pops_table is None else
@@ -148,17 +150,18 @@ def evidence_tables(study: StudyFolder, *, rng_seed: int = 0, n_boot: int = 1000
             frames.setdefault(k, []).append(v)
     tables = {PREFIX + k: pd.concat(v, ignore_index=True) for k, v in frames.items()}
     if PREFIX + "headline" in tables:
-        tables.update(_decided(tables, boot_excess, costs, sizes))
+        tables.update(_decided(tables, boot_excess, costs, sizes, references))
     return tables, missing
 
 
 def _decided(tables: dict[str, pd.DataFrame], boot_excess: dict, costs: dict[str, Costs],
-             null_sizes: dict[str, int] | None = None) -> dict[str, pd.DataFrame]:
+             null_sizes: dict[str, int] | None = None, references: dict | None = None
+             ) -> dict[str, pd.DataFrame]:
     """The headline's verdicts with multiplicity control over its table, "burden beyond
     robot time" with control over its own, the interaction test's over its own rows, the
     power advice at the headline's level, and the calibration on placebos."""
     nulls = tables[PREFIX + "null_rates"]
-    head = family_verdicts(tables[PREFIX + "headline"], nulls)
+    head = family_verdicts(tables[PREFIX + "headline"], nulls, references=references)
     comps = list(dict.fromkeys(head["comparison"]))
     burden_metrics = names("burden", summary=True)
     m = max(sum(c in costs for c in comps) * len(burden_metrics), 1)

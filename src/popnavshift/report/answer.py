@@ -3,7 +3,8 @@
 Sections built from the ``evidence_*`` tables (:mod:`.evidence`): the plain-words answer
 (:mod:`.plain`), then the headline box — per comparison and metric, the raw reversal rate
 against its null with the verdict of the test it rests on (the prediction t on the
-spread between null replicates), the exact permutation p and the episode-only interval
+spread between null replicates, or across the population pairs the randomization test
+over recombined designs), the exact permutation p and the episode-only interval
 beside it, and the significant rule as a second line — the full observed-vs-null table,
 the nulls drawn as dots, "burden reverses more than robot time" against the null, and
 each controller's rank per population with rank intervals. The survival of the paper's
@@ -51,11 +52,14 @@ def design_text(r: Any) -> str:
 
 
 def _raw_line(raw: Any) -> str:
+    test = (f"randomization p = {_p(raw['p_t'])} against {DRAWS:,} recombined designs "
+            f"(t = {fmt(raw['t'])} on {int(raw['df'])} df, shown, not used)"
+            if raw.get("test") == RECOMBINED else
+            f"prediction t = {fmt(raw['t'])} on {int(raw['df'])} df, p = {_p(raw['p_t'])}")
     return (f"{LABELS[raw['metric']]}: {pct(raw['observed'])} of comparable orderings reverse "
             f"({raw['reversals']}/{raw['comparable']}) against {pct(raw['null_mean'])} under the "
             f"null — excess {pp(raw['excess'])} [{pp(raw['ci_low'])}, {pp(raw['ci_high'])}], "
-            f"prediction t = {fmt(raw['t'])} on {int(raw['df'])} df, p = {_p(raw['p_t'])} "
-            f"(× {int(raw.get('family', 1))} rates: {_p(raw.get('p_adj', raw['p_t']))})")
+            f"{test} (× {int(raw.get('family', 1))} rates: {_p(raw.get('p_adj', raw['p_t']))})")
 
 
 def _details(raw: Any, sig: Any | None) -> list[str]:
@@ -98,7 +102,10 @@ def headline_entries(head: pd.DataFrame) -> list[dict[str, Any]]:
 
 NOTE = ("Raw rule: the paper's reversal rate (tie tolerance 0.02 s for delays, 0.05 s for robot "
         "time). Excess = observed − mean of the null replicates. The verdict rests on the "
-        "spread between null replicates (prediction t); the rates of the box are decided "
+        "spread between null replicates: a prediction t under the matched shift; across the "
+        "population pairs, whose null is drawn population by population, the exact "
+        "randomization test over designs recombined from the replicates (its interval the "
+        "test inverted under a shift). The rates of the box are decided "
         "together, each at 5%/m for m rates (Bonferroni), so the intervals in brackets are "
         "simultaneous 95% intervals and the p after '×' is the adjusted one: "
         f"'{ABOVE}' or '{BELOW}' when the interval excludes 0, '{SMALL}' when it rules out an "

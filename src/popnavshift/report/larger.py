@@ -69,7 +69,8 @@ class MeasuredClaim:
     """A reversal verdict's claim (``claim``: :data:`..analysis.verdicts.ABOVE`) as the raw
     rule makes it at its ``nominal`` one-sided level, measured on ``replicates`` null
     replicates of a study's design (seed ``seed``) for one comparison at
-    ``variants_per_cell``: ``measured`` holds the claims, placebos, rate and
+    ``variants_per_cell``, decided by ``test`` (the headline's ``test``: a rate decided by
+    another says nothing of it): ``measured`` holds the claims, placebos, rate and
     Clopper–Pearson interval."""
 
     comparison: str
@@ -79,6 +80,7 @@ class MeasuredClaim:
     replicates: int
     variants_per_cell: int
     measured: dict
+    test: str = "prediction t"
 
 
 def _record(study: str) -> dict:
@@ -158,5 +160,6 @@ def measured_claims(study: str) -> list[MeasuredClaim]:
     """The reversal claims whose raw rate was measured on many null replicates of
     ``study``'s design (the record's ``calibration_reversal``)."""
     return [MeasuredClaim(c["comparison"], c["claim"], float(c["nominal"]), int(c["seed"]),
-                          int(c["replicates"]), int(c["variants_per_cell"]), c["measured"])
+                          int(c["replicates"]), int(c["variants_per_cell"]), c["measured"],
+                          str(c.get("test", "prediction t")))
             for c in _record(study).get("calibration_reversal", [])]

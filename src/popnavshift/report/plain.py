@@ -94,8 +94,8 @@ def _rows(tables: dict[str, pd.DataFrame]) -> pd.DataFrame:
     where the rate has a null) and an interaction verdict (``inter``), either may be NaN."""
     head = tables["evidence_headline"]
     raw = head[(head["rule"] == "raw") & (head["n_null"] > 0)]
-    rev = raw.assign(rev=raw["verdict"])[["comparison", "metric", "rev", "excess", "ci_low",
-                                          "ci_high"]]
+    rev = raw.assign(rev=raw["verdict"], test=raw.get("test", "prediction t"))[
+        ["comparison", "metric", "rev", "excess", "ci_low", "ci_high", "test"]]
     inter = tables.get("evidence_interaction")
     if inter is None or inter.empty or "verdict" not in inter:
         return rev.assign(inter=np.nan, t=np.nan, p_adj=np.nan, n_null_i=0, terms_i=np.nan)

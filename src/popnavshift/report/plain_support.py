@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import pandas as pd
 
+from ..analysis.recombine import RECOMBINED
 from ..analysis.verdicts import ABOVE, DESCRIPTIVE, NOT_SHOWN, min_nulls_permutation
 from .blocks import pct
 from .plain_words import by_metric, join, label, phrase
@@ -92,11 +93,25 @@ def calibration_sentence(calibration: pd.DataFrame | None) -> dict[str, str] | N
     table = calibration[(calibration["comparison"] == "table")
                         & calibration["claim"].str.startswith("any rate")]
     test = calibration[(calibration["comparison"] == "all")
-                       & (calibration["test"] == "prediction t")
+                       & calibration["test"].isin(["prediction t", RECOMBINED])
                        & calibration["claim"].str.startswith("an effect")]
     if test.empty:
         return None
-    t = test.iloc[0]
+    by = {r["test"]: r for _, r in test.iterrows()}
+
+    def rate(r: pd.Series) -> str:
+        return (f"on {int(r['placebos'])} placebos drawn from this study's own nulls it "
+                f"claimed an effect in {pct(r['rate'])} [95% {pct(r['cp_low'])}, "
+                f"{pct(r['cp_high'])}] at a nominal {pct(r['nominal'])}")
+
+    tests = []
+    if "prediction t" in by:
+        tests.append("by a prediction t on the spread between replicates (alone, "
+                     + rate(by["prediction t"]) + ")")
+    if RECOMBINED in by:
+        tests.append("across the population pairs, whose null is drawn population by "
+                     "population, by the exact randomization test over designs recombined "
+                     "from the replicates (" + rate(by[RECOMBINED]) + ")")
     family = ""
     if not table.empty:
         f = table.iloc[0]
@@ -106,9 +121,6 @@ def calibration_sentence(calibration: pd.DataFrame | None) -> dict[str, str] | N
                   f"a nominal {pct(f['nominal'])}.")
     return {"lead": "How the reversal verdicts are decided.",
             "text": "Each reversal verdict rests on the raw reversal rate (the paper's tie rule) "
-                    "against null replicates run on the same episodes, by a prediction t on the "
-                    f"spread between replicates; alone, on {int(t['placebos'])} placebos drawn "
-                    f"from this study's own nulls, it claimed an effect in {pct(t['rate'])} "
-                    f"[95% {pct(t['cp_low'])}, {pct(t['cp_high'])}] at a nominal "
-                    f"{pct(t['nominal'])}." + family + " Intervals are simultaneous 95% "
+                    "against null replicates run on the same episodes, "
+                    + "; ".join(tests) + "." + family + " Intervals are simultaneous 95% "
                     "intervals over the headline table (calibration section)."}
