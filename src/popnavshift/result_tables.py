@@ -46,7 +46,9 @@ RESULT_TABLES: tuple[ResultTable, ...] = (
                 "null_max over the null replicates (n_null, of kind `null`); excess = observed "
                 "− null_mean with its simultaneous interval ci_low–ci_high (level, over a "
                 "family of m rates), the verdict and the test it rests on (p_t, p_value, "
-                "p_adj); episode_ci_low–high: the episode-only interval (no test)"),
+                "p_adj; against recombined designs also its one-sided p_above, p_below and "
+                "p_small, the p_below of the rate less 5 pp); episode_ci_low–high: the "
+                "episode-only interval (no test)"),
     ResultTable("evidence_interaction", "answer",
                 "one interaction test — do controller differences change with the population "
                 "more than under the null? — per comparison and metric",
@@ -63,7 +65,10 @@ RESULT_TABLES: tuple[ResultTable, ...] = (
                 "one null replicate's rate, per comparison, metric and rule",
                 ("comparison", "metric", "rule", "replicate"),
                 "rate, reversals, comparable; episode_excludes_zero: the replicate as a "
-                "placebo, whether the episode-only interval of its excess excludes 0"),
+                "placebo, whether the episode-only interval of its excess excludes 0; where "
+                "the raw rule is decided against recombined designs, the placebo's one-sided "
+                "randomization p-values placebo_p_above, placebo_p_below (and at +5 pp, "
+                "+10 pp)"),
     ResultTable("evidence_burden", "answer",
                 "one test of 'burden reverses more than robot time' against the null, per "
                 "comparison, rule and burden metric", ("comparison", "rule", "metric"),

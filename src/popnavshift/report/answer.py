@@ -143,7 +143,8 @@ def _answer(p: Page, head: pd.DataFrame) -> list[Block]:
                      Cell(r.verdict, "strong")])
     out.append(table(["Comparison", "Metric", "Rule", "Seed sets", "Reversals / comparable",
                       "Observed", "Null mean", "Null range", "Excess",
-                      "Simultaneous 95% interval", "Decided by", "p (t)", "p (exact)",
+                      "Simultaneous 95% interval", "Decided by", "p (its test)",
+                      "p (exact, vs replicates)",
                       "p (adjusted)", "Episode-only interval", "Nulls", "Verdict"], rows,
                      caption="Every headline rate against its null",
                      csv="evidence_headline", collapsed=True))
