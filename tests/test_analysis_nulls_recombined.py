@@ -167,3 +167,29 @@ def test_its_placebos_are_counted_under_their_own_name_and_in_the_whole_table():
     effect = fam[fam["claim"].str.startswith("any rate")]["claim_made"].to_numpy()
     expect = (np.minimum(raw["placebo_p_above"], raw["placebo_p_below"]) <= 0.0025).to_numpy()
     assert np.array_equal(effect, expect)
+
+
+def test_a_card_decides_its_pairs_rates_against_recombined_designs_as_the_headline_does():
+    """A card's rates across the population pairs (pooled over its baselines and against
+    each alone) rest on the same recombined test as the headline's, decided at the card's
+    share of the level, with its placebos in the card's calibration."""
+    from popnavshift.evaluate.robustness import robustness_tables
+    from popnavshift.populations.identity import PopulationSpec
+    from synth_study import design_specs, no_effect, synthetic_study
+
+    observed = ["mixed", "high_caution", "low_robot_trust"]
+    pops = {p: no_effect for p in observed}
+    pops |= {PopulationSpec.sized(p, k).name: no_effect for p in observed for k in range(1, 6)}
+    runs, peds = synthetic_study(pops, n_cells=6, variants=3, n_peds=4, seed=1)
+    specs = {s.name: s for s in design_specs(runs, "sized", observed)}
+    rob = robustness_tables(runs, peds, "a", ["b", "c"], specs, observed, rng_seed=0,
+                            n_boot=40, interaction=False)
+    raw = rob.headline[rob.headline["rule"] == "raw"]
+    assert (raw["test"] == RECOMBINED).all() and len(raw) >= 4
+    rated = raw[raw["observed"].notna()]  # blocked pedestrians: none here, no rate
+    assert len(rated) >= 4 and rated["ci_low"].notna().all()  # from its recombined rates
+    by = rob.by_baseline[rob.by_baseline["rule"] == "raw"]
+    assert (by["test"] == RECOMBINED).all() and set(by["baseline"]) == {"b", "c"}
+    assert by.loc[by["observed"].notna(), "ci_low"].notna().all()
+    cal = rob.calibration
+    assert ((cal["test"] == RECOMBINED) & (cal["claim"] == "above the null")).any()

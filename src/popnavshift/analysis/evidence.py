@@ -66,6 +66,9 @@ class Tested:
     #: (comparison, metric, rule) → the rates of the designs recombined from the observed
     #: and its replicates, where the raw rule is decided against them (:mod:`.recombine`)
     references: dict[tuple[str, str, str], np.ndarray] = field(default_factory=dict)
+    #: with a ``controller``: the same per (comparison, baseline, metric, rule)
+    pair_references: dict[tuple[str, str, str, str], np.ndarray] = field(
+        default_factory=dict)
 
 
 def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
@@ -104,6 +107,7 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
     weights = episode_weights(design, n_boot, rng)
     boot_excess: dict[tuple[str, str, str], np.ndarray] = {}
     references: dict[tuple[str, str, str], np.ndarray] = {}
+    pair_references: dict[tuple[str, str, str, str], np.ndarray] = {}
     frames: dict[str, list[pd.DataFrame]] = {k: [] for k in ("head", "null", "cross", "ord",
                                                            "rank", "placebo", "pair_head",
                                                            "pair_null", "inter",
@@ -116,10 +120,9 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
         for label, d in designs.items():
             obs_pairs, null_pairs = d.observed, d.nulls
             # the raw rule against recombined designs where the null has several units
-            # (the headline; a card keeps the prediction t: docs/analysis.md §10)
+            # (docs/analysis.md §10), for the headline and a card's rates alike
             rows, reps = null_test(o, obs_pairs, null_pairs, ci_level=ci_level,
-                                   units=d.units if controller is None else (),
-                                   null_size=(null_sizes or {}).get(label))
+                                   units=d.units, null_size=(null_sizes or {}).get(label))
             for row in rows:
                 boot_excess[(label, metric, row["rule"])] = row.pop("boot_excess")
                 if "reference" in row:
@@ -129,7 +132,11 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
             for other in _others(o, controller):
                 assert controller is not None
                 one, one_reps = null_test(o.involving(controller, other), obs_pairs, null_pairs,
-                                          ci_level=ci_level)
+                                          ci_level=ci_level, units=d.units)
+                for row in one:
+                    if "reference" in row:
+                        pair_references[(label, other, metric, row["rule"])] = \
+                            row.pop("reference")
                 frames["pair_head"].append(pd.DataFrame(one).drop(columns="boot_excess")
                                            .assign(comparison=label, baseline=other))
                 frames["pair_null"].append(one_reps.assign(comparison=label, baseline=other))
@@ -159,7 +166,7 @@ def test_comparisons(runs: pd.DataFrame, pedestrians: pd.DataFrame,
     cat = {k: pd.concat(v, ignore_index=True) if v else pd.DataFrame() for k, v in frames.items()}
     return Tested(cat["head"], cat["null"], cat["cross"], cat["ord"], cat["rank"],
                   cat["placebo"], n_boot, level, boot_excess, cat["pair_head"], cat["pair_null"],
-                  cat["inter"], cat["inter_null"], cat["pairs"], references)
+                  cat["inter"], cat["inter_null"], cat["pairs"], references, pair_references)
 
 
 def _others(o: Orderings, controller: str | None) -> list[str]:

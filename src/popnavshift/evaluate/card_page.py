@@ -18,6 +18,7 @@ from jinja2 import Environment, select_autoescape
 from markupsafe import Markup
 
 from ..analysis import METRICS, TOLERANCES
+from ..analysis.recombine import RECOMBINED
 from ..controller_ids import display_name
 from ..outputs import FileSet
 from ..populations.build import population_order
@@ -150,7 +151,8 @@ def render_html(card: Card, meta: dict[str, Any], png_name: str, svg: str | None
 
 def _robustness_rows(card: Card, by_baseline: bool = False) -> list[dict[str, Any]]:
     """The robustness table's raw-rule rows as text: observed and null rates [%], the
-    excess [pp] with its simultaneous interval, the prediction t with its adjusted p, the
+    excess [pp] with its simultaneous interval, its test's p (the prediction t, or the
+    randomization test over recombined designs) with the adjusted p, the
     exact permutation p, and the verdict."""
     rob = card.robustness
     table = rob.by_baseline if by_baseline else rob.headline
@@ -165,20 +167,24 @@ def _robustness_rows(card: Card, by_baseline: bool = False) -> list[dict[str, An
                              f"{int(r.seed_sets)} seed set{'s' if r.seed_sets != 1 else ''})",
                      "excess": f"{100 * r.excess:+.1f} pp [{100 * r.ci_low:+.1f}, "
                                f"{100 * r.ci_high:+.1f}]",
-                     "t": f"{r.t:.2f} ({int(r.df)} df), p adj. {_fmt(r.p_adj, 3)}",
+                     "t": (f"randomization p {_fmt(r.p_t, 4)} (t {r.t:.2f}, not used), "
+                           f"p adj. {_fmt(r.p_adj, 3)}" if getattr(r, "test", "") == RECOMBINED
+                           else f"{r.t:.2f} ({int(r.df)} df), p adj. {_fmt(r.p_adj, 3)}"),
                      "exact": _fmt(r.p_value, 3), "verdict": r.verdict,
                      "above": r.verdict == "above the null"})
     return rows
 
 
 def _calibration_line(card: Card) -> str:
-    """The card's own placebos: how often the prediction t claimed an effect where none is."""
+    """The card's own placebos: how often the raw rule's test (the prediction t; across the
+    population pairs the randomization test over recombined designs) claimed an effect
+    where none is."""
     cal = card.robustness.calibration
     if cal is None or cal.empty:
         return ""
-    rows = cal[(cal["comparison"] == "all") & (cal["test"] == "prediction t")
+    rows = cal[(cal["comparison"] == "all") & cal["test"].isin(["prediction t", RECOMBINED])
                & (cal["kind"] == "false positive")]
-    parts = [f"{r.claim}: {r.claims}/{r.placebos} ({100 * r.rate:.1f}% "
+    parts = [f"{r.test}, {r.claim}: {r.claims}/{r.placebos} ({100 * r.rate:.1f}% "
              f"[{100 * r.cp_low:.1f}, {100 * r.cp_high:.1f}], nominal {100 * r.nominal:g}%)"
              for r in rows.itertuples() if r.placebos]
     return "; ".join(parts)
@@ -289,7 +295,7 @@ made {{ meta.made }}.</p>
 <h2>Robustness: how often its orderings reverse with the population, beside its own null</h2>
 {% if robustness %}<div class="wrap"><table><tr><th>design</th><th>metric</th>
 <th>observed rate</th><th>null rate (mean)</th><th>excess [simultaneous 95% CI]</th>
-<th>prediction t</th><th>exact p</th><th>verdict</th></tr>
+<th>its test</th><th>exact p</th><th>verdict</th></tr>
 {% for r in robustness %}<tr><td class="l">{{ r.design }}</td><td class="l">{{ r.metric }}</td>
 <td>{{ r.observed }}</td><td>{{ r.null }}</td><td{% if r.above %} class="bad"{% endif %}>{{
 r.excess }}</td><td>{{ r.t }}</td><td>{{ r.exact }}</td><td class="l">{{ r.verdict }}</td></tr>
@@ -298,8 +304,10 @@ r.excess }}</td><td>{{ r.t }}</td><td>{{ r.exact }}</td><td class="l">{{ r.verdi
 design's population pairs (the matched pair against swap permutations of its personas'
 profiles; the population pairs against size-matched subsets of mixed), on the same
 episodes; each null replicate is the same rate with the population label carrying no
-information. The verdict rests on the spread between replicates (a prediction t, decided
-at α/m over the table's m rates; the exact permutation p beside it). "no excess ≥ 5 pp"
+information. The verdict rests on the spread between replicates (a prediction t; across
+the population pairs, whose null is drawn population by population, the exact randomization
+test over designs recombined from the replicates; decided at α/m over the table's m rates;
+the exact permutation p beside it). "no excess ≥ 5 pp"
 is a robust finding; "undecided" claims nothing.{% if calibration %} On this card's own
 placebos (a null replicate taken as the observed): {{ calibration }}.{% endif %}</p>
 {% if by_baseline %}<details><summary>Against each baseline alone (decided over its own

@@ -10,7 +10,9 @@ size-matched subsets of mixed, on the main grid), per baseline b and ranked metr
 rate at which the (controller, b) ordering reverses between the observed populations,
 against the same rate on every null replicate — the same episodes, slots and
 controllers, only the population label carries no information. The raw rule's verdict
-rests on the prediction t between replicates, the significant rule's on the exact
+rests on the prediction t between replicates (across the population pairs, as the
+headline's, on the exact randomization test over designs recombined from them,
+:mod:`popnavshift.analysis.recombine`), the significant rule's on the exact
 permutation p (:mod:`popnavshift.analysis.verdicts`); every rate of the card's table is
 decided at α/m (Bonferroni over its m rates per rule,
 :func:`popnavshift.analysis.nulls.family_verdicts`), so its claims hold together.
@@ -61,8 +63,8 @@ RANKED = {m.name: m for m in RANKED_METRICS}
 SENSITIVE, ROBUST, UNDECIDED_LABEL = "population-sensitive", "robust", "undecided"
 #: the columns of the card's robustness table, in order
 COLUMNS = ("design", "baseline", "metric", "rule", "observed", "null_mean", "excess", "ci_low",
-           "ci_high", "t", "df", "p_t", "p_value", "p_adj", "n_null", "verdict", "family",
-           "level", "seed_sets", "null")
+           "ci_high", "t", "df", "p_t", "p_value", "p_adj", "n_null", "verdict", "test",
+           "family", "level", "seed_sets", "null")
 
 
 @dataclass
@@ -104,6 +106,8 @@ def robustness_tables(runs: pd.DataFrame, peds: pd.DataFrame, controller: str,
     runs, peds = runs[runs["controller"].isin(keep)], peds[peds["controller"].isin(keep)]
     frames: dict[str, list[pd.DataFrame]] = {"head": [], "null": [], "pair": [], "pair_null": [],
                                              "inter": [], "inter_null": []}
+    refs: dict[tuple[str, str, str], np.ndarray] = {}  # recombined rates, per table row
+    pair_refs: dict[tuple[str, str, str], np.ndarray] = {}
     missing: dict[str, str] = {}
     for i, (label, design) in enumerate(designs.items()):
         if not design.nulls:
@@ -126,6 +130,9 @@ def robustness_tables(runs: pd.DataFrame, peds: pd.DataFrame, controller: str,
         # breakdown is one test of its own family and one comparison of its placebos
         by = tested.pair_headline.assign(**extra)
         frames["pair"].append(by.assign(comparison=by["comparison"] + " vs " + by["baseline"]))
+        refs.update(tested.references)
+        pair_refs.update({(f"{c} vs {b}", m, rule): v
+                          for (c, b, m, rule), v in tested.pair_references.items()})
         pn = tested.pair_null_rates
         frames["pair_null"].append(pn.assign(
             design=label, comparison=pn["comparison"] + " vs " + pn["baseline"]))
@@ -141,8 +148,8 @@ def robustness_tables(runs: pd.DataFrame, peds: pd.DataFrame, controller: str,
                           missing)
     cat = {k: pd.concat(v, ignore_index=True) if v else pd.DataFrame()
            for k, v in frames.items()}
-    head = family_verdicts(cat["head"], cat["null"])
-    by_baseline = family_verdicts(cat["pair"], cat["pair_null"])
+    head = family_verdicts(cat["head"], cat["null"], references=refs)
+    by_baseline = family_verdicts(cat["pair"], cat["pair_null"], references=pair_refs)
     family = int(head.loc[head["rule"] == "raw", "family"].max())
     inter = interaction_verdicts(cat["inter"]) if not cat["inter"].empty else cat["inter"]
     calibration = calibration_table(
