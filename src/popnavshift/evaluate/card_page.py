@@ -295,7 +295,7 @@ made {{ meta.made }}.</p>
 <h2>Robustness: how often its orderings reverse with the population, beside its own null</h2>
 {% if robustness %}<div class="wrap"><table><tr><th>design</th><th>metric</th>
 <th>observed rate</th><th>null rate (mean)</th><th>excess [simultaneous 95% CI]</th>
-<th>its test</th><th>exact p</th><th>verdict</th></tr>
+<th>its test</th><th>exact p vs replicates</th><th>verdict</th></tr>
 {% for r in robustness %}<tr><td class="l">{{ r.design }}</td><td class="l">{{ r.metric }}</td>
 <td>{{ r.observed }}</td><td>{{ r.null }}</td><td{% if r.above %} class="bad"{% endif %}>{{
 r.excess }}</td><td>{{ r.t }}</td><td>{{ r.exact }}</td><td class="l">{{ r.verdict }}</td></tr>
