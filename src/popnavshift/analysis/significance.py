@@ -138,8 +138,8 @@ def orderings(cells: pd.DataFrame, design: Design, boot: dict[str, np.ndarray], 
     pos = _grid(cells, pops, units, ctrl)
     pairs = list(combinations(range(len(ctrl)), 2))
     point = np.append(cells[metric].to_numpy(float), np.nan)  # index −1 → NaN
-    resampled = np.concatenate([boot[metric], np.full((boot[metric].shape[0], 1), np.nan)],
-                               axis=1)
+    resampled = boot[metric]  # (B, R) float32; index −1 (absent) is masked by _take: a
+    # padded float64 copy of it was the largest array of a design with many null replicates
     i1 = pos[:, :, [a for a, _ in pairs]]
     i2 = pos[:, :, [b for _, b in pairs]]
     diff = point[i1] - point[i2]
@@ -149,7 +149,7 @@ def orderings(cells: pd.DataFrame, design: Design, boot: dict[str, np.ndarray], 
     per_cell = design.episodes.groupby("cell").size()
     n_eps = units["cell"].map(per_cell).fillna(0).to_numpy(np.int64)
     for p in range(len(pops)):  # one population at a time bounds the temporaries
-        d = resampled[:, i1[p]] - resampled[:, i2[p]]
+        d = _take(resampled, i1[p]) - _take(resampled, i2[p])
         d_boot[:, p] = d
         with np.errstate(all="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN slices → NaN
@@ -168,6 +168,14 @@ def orderings(cells: pd.DataFrame, design: Design, boot: dict[str, np.ndarray], 
     tol = TOLERANCES[metric] if tolerance is None else tolerance
     return Orderings(metric, pops, units, [(ctrl[a], ctrl[b]) for a, b in pairs], diff,
                      low, high, se, sig, d_boot, level, tol, n_eps)
+
+
+def _take(resampled: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """``resampled[:, idx]`` in float64 (the differences and their spread are taken in
+    float64), NaN where ``idx`` is −1 (a row absent from the cells)."""
+    out = resampled[:, np.maximum(idx, 0)].astype(np.float64)
+    out[:, idx < 0] = np.nan
+    return out
 
 
 def expanded_tail(level: float, n: int) -> float:
