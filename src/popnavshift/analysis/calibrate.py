@@ -9,6 +9,10 @@ rule makes on a placebo is a false positive. Per rule and claim:
   claims *above the null* (2.5 %); and, on the placebo shifted up by 5 pp — a true excess
   of exactly 5 pp — claims *no excess ≥ 5 pp* (2.5 %). Its power is read off placebos
   shifted by 5 and 10 pp;
+* **recombined designs** (the raw rule where the null has several units, across the
+  population pairs: :mod:`.recombine`): the prediction t's claims, each made from the
+  placebo's own randomization p-values (computed with the null replicates' table, against
+  designs recombined from the placebo and the replicates it is judged against);
 * **exact permutation** (significant rule): claims *above the null* (5 %; exact by
   construction — with P − 1 replicates it can reach 0.05 only when P ≥ 20, so a study
   with fewer has no placebo for it, and says so);

@@ -46,7 +46,7 @@ import pandas as pd
 from scipy import stats
 
 from .calibrate import placebo_nulls
-from .recombine import DRAWS, RECOMBINED, Recombination
+from .recombine import DRAWS, PREDICTION, RECOMBINED, Recombination
 from .significance import Orderings
 from .verdicts import ALPHA, DESCRIPTIVE, MIN_NULLS_T, permutation_p
 
@@ -167,10 +167,6 @@ def one_sided(t0: float, null: np.ndarray) -> dict:
         return out
     t = (t0 - out["null_mean"]) / (out["null_sd"] * np.sqrt(1 + 1 / p))
     return {**out, "t": float(t), "p_t": float(stats.t.sf(t, p - 1))}
-
-
-#: how a row's p was computed without recombined designs
-PREDICTION = "prediction t"
 
 
 class Recombined:

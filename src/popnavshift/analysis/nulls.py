@@ -8,8 +8,10 @@ so one paired episode bootstrap is shared by the observed and null populations):
 
 * **observed** rate and each null replicate's rate, raw and significant;
 * **verdict** on the excess = observed − mean of the null rates, from the spread
-  *between* replicates (:mod:`.verdicts`: the prediction t for the raw rule, the exact
-  permutation p = (1 + #{null_k ≥ observed}) / (1 + P) for the significant rule);
+  *between* replicates (:mod:`.verdicts`: the prediction t for the raw rule — where the
+  null is made of several units, the exact randomization test over recombined designs,
+  :mod:`.recombine` — and the exact permutation p = (1 + #{null_k ≥ observed}) / (1 + P)
+  for the significant rule);
 * a second, labelled figure: the excess's **episode-only interval** ("beyond episode
   noise for these personas"), from the shared episode bootstrap (excess_b = obs_b −
   mean_k null_{k,b}): excess ± z · √(n/(n−1)) · SD_b(excess_b), n the episodes per cell.
@@ -39,6 +41,7 @@ from .recombine import (
     RECOMBINED,
     RecombinedRates,
     recombined_decide,
+    recombined_interval,
     recombined_verdict,
     tail_ps,
 )
@@ -255,13 +258,11 @@ def family_verdicts(headline: pd.DataFrame, null_rates: pd.DataFrame, *,
         m = max(len(tested), 1)
         for i, r in tested.iterrows():
             k = (r["comparison"], r["metric"], rule)
-            if r.get("test") == RECOMBINED:
-                ref = (references or {}).get(k)
-                d = (recombined_decide(float(r["observed"]), ref, null_mean=r["null_mean"],
-                                       alpha=alpha / m) if ref is not None else
-                     {"ci_low": np.nan, "ci_high": np.nan,
-                      "verdict": recombined_verdict(r["p_above"], r["p_below"], r["p_small"],
-                                                    alpha / (2 * m))})
+            if r.get("test") == RECOMBINED:  # its p-values were computed with the row
+                d = {"verdict": recombined_verdict(r["p_above"], r["p_below"], r["p_small"],
+                                                   alpha / (2 * m)),
+                     **recombined_interval(float(r["observed"]), (references or {}).get(k),
+                                           alpha / m)}
             else:
                 d = decide(float(r["observed"]), rates[k], rule, floor=floors[k],
                            alpha=alpha / m)

@@ -33,6 +33,7 @@ from .verdicts import ABOVE, BELOW, MIN_EFFECT, SMALL, UNDECIDED, permutation_p
 DRAWS = 19_999
 #: how a row's p was computed: against recombined designs, or by the prediction t
 RECOMBINED = "recombined designs"
+PREDICTION = "prediction t"
 
 
 class Recombination:
@@ -133,13 +134,16 @@ PLACEBO_PS: dict[str, tuple[int, float]] = {
     "placebo_p_above_10pp": (0, 2 * MIN_EFFECT)}
 
 
+#: the column of :data:`PLACEBO_PS` by (tail, shift rounded to 1e-9)
+_PS_COLUMN = {(side, round(at, 9)): c for c, (side, at) in PLACEBO_PS.items()}
+
+
 def placebo_ps(row: Mapping[str, float], shift: float) -> tuple[float, float, float]:
     """(p↑, p↓, p₅) of a placebo's rate shifted by ``shift``, from its row's
     :data:`PLACEBO_PS` (p₅ is the p↓ of the shifted rate less 5 pp; NaN where not kept)."""
-    col = {(side, round(at, 9)): c for c, (side, at) in PLACEBO_PS.items()}
 
     def get(side: int, at: float) -> float:
-        c = col.get((side, round(at, 9)))
+        c = _PS_COLUMN.get((side, round(at, 9)))
         return float(row[c]) if c is not None and c in row else np.nan
 
     return get(0, shift), get(1, shift), get(1, shift - MIN_EFFECT)
@@ -165,20 +169,25 @@ def recombined_verdict(up: float, down: float, small: float, a: float) -> str:
             BELOW if down <= a else SMALL if small <= a else UNDECIDED)
 
 
+def recombined_interval(rate: float, ref: np.ndarray | None, alpha: float) -> dict:
+    """``ci_low``, ``ci_high``: the test inverted under a shift at two-sided ``alpha``,
+    [R − q↑, R − q↓] (:func:`order_level`); NaN without the recombined rates ``ref``."""
+    q_up, q_down = (np.nan, np.nan) if ref is None else order_level(ref, alpha / 2)
+    return {"ci_low": rate - q_up, "ci_high": rate - q_down}
+
+
 def recombined_decide(rate: float, ref: np.ndarray, *, null_mean: float, alpha: float,
                       min_effect: float = MIN_EFFECT) -> dict:
     """The raw rule's verdict on ``rate`` against its recombined reference ``ref`` at
     two-sided ``alpha`` (docs/analysis.md §10): :func:`recombined_verdict` of p↑, p↓ and p₅
-    (the p↓ of the rate less ``min_effect``) at α/2, with the test's inversion under a
-    shift as its interval, [R − q↑, R − q↓] (:func:`order_level`). ``excess`` stays the
-    rate less ``null_mean`` (the study's replicates'); ``p_t`` is the two-sided p,
-    min(1, 2·min(p↑, p↓)). The prediction t's ``t`` and ``df`` are left to the caller (they
-    describe the excess on the replicates' spread)."""
+    (the p↓ of the rate less ``min_effect``) at α/2, with :func:`recombined_interval`.
+    ``excess`` stays the rate less ``null_mean`` (the study's replicates'); ``p_t`` is the
+    two-sided p, min(1, 2·min(p↑, p↓)). The prediction t's ``t`` and ``df`` are left to the
+    caller (they describe the excess on the replicates' spread)."""
     up, down = tail_ps(rate, ref)
     small = tail_ps(rate, ref, -min_effect)[1]
-    q_up, q_down = order_level(ref, alpha / 2)
     return {"excess": rate - null_mean,
             "p_t": min(1.0, 2 * min(up, down)) if np.isfinite(up) else np.nan,
-            "ci_low": rate - q_up, "ci_high": rate - q_down,
+            **recombined_interval(rate, ref, alpha),
             "verdict": recombined_verdict(up, down, small, alpha / 2),
             "p_above": up, "p_below": down, "p_small": small, "test": RECOMBINED}

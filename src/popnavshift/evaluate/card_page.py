@@ -18,7 +18,7 @@ from jinja2 import Environment, select_autoescape
 from markupsafe import Markup
 
 from ..analysis import METRICS, TOLERANCES
-from ..analysis.recombine import RECOMBINED
+from ..analysis.recombine import PREDICTION, RECOMBINED
 from ..controller_ids import display_name
 from ..outputs import FileSet
 from ..populations.build import population_order
@@ -182,7 +182,7 @@ def _calibration_line(card: Card) -> str:
     cal = card.robustness.calibration
     if cal is None or cal.empty:
         return ""
-    rows = cal[(cal["comparison"] == "all") & cal["test"].isin(["prediction t", RECOMBINED])
+    rows = cal[(cal["comparison"] == "all") & cal["test"].isin([PREDICTION, RECOMBINED])
                & (cal["kind"] == "false positive")]
     parts = [f"{r.test}, {r.claim}: {r.claims}/{r.placebos} ({100 * r.rate:.1f}% "
              f"[{100 * r.cp_low:.1f}, {100 * r.cp_high:.1f}], nominal {100 * r.nominal:g}%)"

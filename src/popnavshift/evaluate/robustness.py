@@ -38,6 +38,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -129,13 +130,13 @@ def robustness_tables(runs: pd.DataFrame, peds: pd.DataFrame, controller: str,
         # per baseline, the comparison label names the baseline: every rate of the
         # breakdown is one test of its own family and one comparison of its placebos
         by = tested.pair_headline.assign(**extra)
-        frames["pair"].append(by.assign(comparison=by["comparison"] + " vs " + by["baseline"]))
+        frames["pair"].append(by.assign(comparison=_versus(by["comparison"], by["baseline"])))
         refs.update(tested.references)
-        pair_refs.update({(f"{c} vs {b}", m, rule): v
+        pair_refs.update({(_versus(c, b), m, rule): v
                           for (c, b, m, rule), v in tested.pair_references.items()})
         pn = tested.pair_null_rates
         frames["pair_null"].append(pn.assign(
-            design=label, comparison=pn["comparison"] + " vs " + pn["baseline"]))
+            design=label, comparison=_versus(pn["comparison"], pn["baseline"])))
         if not tested.interaction.empty:
             frames["inter"].append(tested.interaction.assign(**extra))
             frames["inter_null"].append(tested.interaction_nulls)
@@ -162,6 +163,12 @@ def robustness_tables(runs: pd.DataFrame, peds: pd.DataFrame, controller: str,
     return Robustness(head[columns], cat["null"], by_baseline[columns], calibration, label,
                       text, missing, deciding_row(head, label), inter,
                       interaction_sentence(inter, named))
+
+
+def _versus(comparison: Any, baseline: Any) -> Any:
+    """The per-baseline table's comparison label, ``<design> vs <baseline>`` (strings or
+    columns): every rate of the breakdown is one comparison of its own."""
+    return comparison + " vs " + baseline
 
 
 def interaction_sentence(inter: pd.DataFrame, controller: str) -> str:

@@ -17,6 +17,8 @@ from importlib import resources
 
 import pandas as pd
 
+from ..analysis.recombine import PREDICTION
+
 #: the two questions of the headline, as the record names them
 QUESTIONS = ("reversals", "interaction")
 
@@ -80,7 +82,7 @@ class MeasuredClaim:
     replicates: int
     variants_per_cell: int
     measured: dict
-    test: str = "prediction t"
+    test: str = PREDICTION
 
 
 def _record(study: str) -> dict:
@@ -161,5 +163,5 @@ def measured_claims(study: str) -> list[MeasuredClaim]:
     ``study``'s design (the record's ``calibration_reversal``)."""
     return [MeasuredClaim(c["comparison"], c["claim"], float(c["nominal"]), int(c["seed"]),
                           int(c["replicates"]), int(c["variants_per_cell"]), c["measured"],
-                          str(c.get("test", "prediction t")))
+                          str(c.get("test", PREDICTION)))
             for c in _record(study).get("calibration_reversal", [])]

@@ -29,6 +29,7 @@ import pandas as pd
 from ..analysis.interaction import CHANGES, NO_TERMS
 from ..analysis.interaction import NOT_SHOWN as NOT_CHANGED
 from ..analysis.power import POWER
+from ..analysis.recombine import PREDICTION
 from ..analysis.reversals import COMPARISONS
 from ..analysis.verdicts import ABOVE, BELOW, MIN_NULLS_T, SMALL, UNDECIDED
 from .larger import (
@@ -94,7 +95,7 @@ def _rows(tables: dict[str, pd.DataFrame]) -> pd.DataFrame:
     where the rate has a null) and an interaction verdict (``inter``), either may be NaN."""
     head = tables["evidence_headline"]
     raw = head[(head["rule"] == "raw") & (head["n_null"] > 0)]
-    rev = raw.assign(rev=raw["verdict"], test=raw.get("test", "prediction t"))[
+    rev = raw.assign(rev=raw["verdict"], test=raw.get("test", PREDICTION))[
         ["comparison", "metric", "rev", "excess", "ci_low", "ci_high", "test"]]
     inter = tables.get("evidence_interaction")
     if inter is None or inter.empty or "verdict" not in inter:

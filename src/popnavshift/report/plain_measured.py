@@ -63,7 +63,7 @@ def _reversal(rows: pd.DataFrame, inter: pd.DataFrame, study: str) -> list[str]:
     said = []
     for m in measured_claims(study):
         claims = rows[(rows["comparison"] == m.comparison) & (rows["rev"] == m.claim)
-                      & (rows.get("test", pd.Series(m.test, rows.index)) == m.test)]
+                      & (rows["test"] == m.test)]
         if claims.empty or m.measured["cp_low"] <= m.nominal or \
                 _variants(inter, m.comparison) != m.variants_per_cell:
             continue

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from ..analysis.recombine import RECOMBINED
+from ..analysis.recombine import PREDICTION, RECOMBINED
 from ..analysis.verdicts import ABOVE, DESCRIPTIVE, NOT_SHOWN, min_nulls_permutation
 from .blocks import pct
 from .plain_words import by_metric, join, label, phrase
@@ -93,7 +93,7 @@ def calibration_sentence(calibration: pd.DataFrame | None) -> dict[str, str] | N
     table = calibration[(calibration["comparison"] == "table")
                         & calibration["claim"].str.startswith("any rate")]
     test = calibration[(calibration["comparison"] == "all")
-                       & calibration["test"].isin(["prediction t", RECOMBINED])
+                       & calibration["test"].isin([PREDICTION, RECOMBINED])
                        & calibration["claim"].str.startswith("an effect")]
     if test.empty:
         return None
@@ -105,9 +105,9 @@ def calibration_sentence(calibration: pd.DataFrame | None) -> dict[str, str] | N
                 f"{pct(r['cp_high'])}] at a nominal {pct(r['nominal'])}")
 
     tests = []
-    if "prediction t" in by:
+    if PREDICTION in by:
         tests.append("by a prediction t on the spread between replicates (alone, "
-                     + rate(by["prediction t"]) + ")")
+                     + rate(by[PREDICTION]) + ")")
     if RECOMBINED in by:
         tests.append("across the population pairs, whose null is drawn population by "
                      "population, by the exact randomization test over designs recombined "
